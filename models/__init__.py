@@ -1,0 +1,34 @@
+"""Truth and sensor models: one module per block class (see ``models/block.py``).
+
+:func:`registry` finds every concrete :class:`~models.block.Block` subclass
+defined in a module of this package; ``make fmus`` packs each into an FMU.
+"""
+
+from __future__ import annotations
+
+import importlib
+import inspect
+import pkgutil
+
+from models.block import Block
+
+_NOT_BLOCKS = {"block", "conventions", "earth"}
+
+
+def registry() -> dict[str, type[Block]]:
+    """All block classes in ``models/``, by class name.
+
+    Returns
+    -------
+    dict
+        ``{class name: class}``, sorted by name.
+    """
+    found: dict[str, type[Block]] = {}
+    for info in pkgutil.iter_modules(__path__):
+        if info.name.startswith("_") or info.name in _NOT_BLOCKS:
+            continue
+        module = importlib.import_module(f"{__name__}.{info.name}")
+        for name, obj in inspect.getmembers(module, inspect.isclass):
+            if issubclass(obj, Block) and obj is not Block and obj.__module__ == module.__name__:
+                found[name] = obj
+    return dict(sorted(found.items()))

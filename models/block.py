@@ -1,0 +1,278 @@
+"""FMI-shaped base class shared by every model in ``models/``.
+
+A model says only what it computes: it lists its variables (:func:`parameter`,
+:func:`input_`, :func:`output`) and implements :meth:`Block.initialize` and
+:meth:`Block.step`. This module owns the FMI side: it registers every variable
+with pythonfmu (vectors as scalars ``name[1]`` .. ``name[n]``), writes units and
+start values into the model description, and maps the FMI life cycle onto the
+two hooks. The same class therefore runs in-process (the master instantiates
+it directly) and inside an FMU built by ``make fmus``, with identical
+arithmetic.
+
+Life cycle (FMI 2.0 co-simulation)::
+
+    instantiate -> setup_experiment(t0) -> enter_initialization_mode
+      -> set parameters / inputs -> exit_initialization_mode  => initialize()
+      -> [set inputs -> do_step(t, h)  => step(t, h) -> get outputs] ...
+      -> terminate                     (reset = a fresh instance, as pythonfmu does)
+
+Only numpy, scipy and pythonfmu may be imported by models: the FMU carries
+``models/`` in its resources and relies on the host interpreter for the rest.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import inspect
+import uuid
+from dataclasses import dataclass
+from typing import Any, ClassVar
+from xml.etree.ElementTree import Element, SubElement
+
+import numpy as np
+from pythonfmu import Fmi2Causality, Fmi2Initial, Fmi2Slave, Fmi2Variability
+from pythonfmu.variables import Boolean, Integer, Real
+
+# SI exponents of the units models may declare, in FMI <BaseUnit> terms.
+# Units whose exponents are not integers (rad/sqrt(s), ...) are declared by name only.
+UNIT_BASE: dict[str, dict[str, int]] = {
+    "1": {},
+    "rad": {"rad": 1},
+    "rad/s": {"rad": 1, "s": -1},
+    "rad/s2": {"rad": 1, "s": -2},
+    "m": {"m": 1},
+    "m/s": {"m": 1, "s": -1},
+    "m/s2": {"m": 1, "s": -2},
+    "s": {"s": 1},
+    "1/s": {"s": -1},
+    "Hz": {"s": -1},
+    "V": {"kg": 1, "m": 2, "s": -3, "A": -1},
+}
+
+_NAMESPACE = uuid.UUID("6f0d8a52-3c41-4e0b-9a53-8f7f3e1c2b10")
+
+
+@dataclass(frozen=True)
+class Var:
+    """Declaration of one (scalar or vector) model variable.
+
+    Attributes
+    ----------
+    name : str
+        Attribute name on the model; FMI scalars are ``name`` or ``name[i]``, i = 1..size.
+    causality : str
+        ``"parameter"``, ``"input"``, ``"output"`` or ``"local"``.
+    start : float, int, bool or tuple
+        Start value; a tuple makes a vector of that length.
+    unit : str
+        SI unit (a key of :data:`UNIT_BASE` or any other name); ``"1"`` when dimensionless.
+    description : str
+        One line for the model description.
+    """
+
+    name: str
+    causality: str
+    start: Any = 0.0
+    unit: str = "1"
+    description: str = ""
+
+    @property
+    def size(self) -> int:
+        """Number of scalar elements (1 for scalars)."""
+        return len(self.start) if isinstance(self.start, (tuple, list)) else 1
+
+    @property
+    def is_vector(self) -> bool:
+        """True when the variable is exposed as ``name[1]`` .. ``name[n]``."""
+        return isinstance(self.start, (tuple, list))
+
+    @property
+    def kind(self) -> str:
+        """FMI type: ``"Real"``, ``"Integer"`` or ``"Boolean"``."""
+        first = self.start[0] if self.is_vector else self.start
+        if isinstance(first, bool):
+            return "Boolean"
+        if isinstance(first, (int, np.integer)):
+            return "Integer"
+        return "Real"
+
+
+def parameter(name: str, start: Any, unit: str = "1", description: str = "") -> Var:
+    """Declare a fixed parameter (set before initialisation, constant afterwards)."""
+    return Var(name, "parameter", start, unit, description)
+
+
+def input_(name: str, start: Any = 0.0, unit: str = "1", description: str = "") -> Var:
+    """Declare a continuous input (set by the master before each step)."""
+    return Var(name, "input", start, unit, description)
+
+
+def output(name: str, start: Any = 0.0, unit: str = "1", description: str = "") -> Var:
+    """Declare an output (valid at the end of each step, and at t0 after initialisation)."""
+    return Var(name, "output", start, unit, description)
+
+
+class _UnitReal(Real):
+    """pythonfmu Real that also writes the ``unit`` attribute."""
+
+    def __init__(self, name: str, unit: str, **kwargs: Any) -> None:
+        super().__init__(name, **kwargs)
+        self.unit = unit
+
+    def to_xml(self) -> Element:
+        node = super().to_xml()
+        if self.unit != "1":
+            node.find("Real").set("unit", self.unit)
+        return node
+
+
+_CAUSALITY = {
+    "parameter": Fmi2Causality.parameter,
+    "input": Fmi2Causality.input,
+    "output": Fmi2Causality.output,
+    "local": Fmi2Causality.local,
+}
+
+
+class Block(Fmi2Slave):
+    """Base class of every model block.
+
+    Subclasses set :attr:`variables` and implement :meth:`initialize` and
+    :meth:`step`. Each declared variable becomes an attribute: a Python scalar
+    for scalars, a float ndarray of shape (n,) for vectors (update it in place
+    or assign a new array of the same shape).
+    """
+
+    #: The model's variables, in the order they appear in the model description.
+    variables: ClassVar[tuple[Var, ...]] = ()
+    #: Default communication step for the model description's DefaultExperiment [s].
+    default_step: ClassVar[float] = 0.01
+    #: Default stop time for the DefaultExperiment (used by a standalone ``fmpy simulate``) [s].
+    default_stop: ClassVar[float] = 1.0
+
+    author = "ins-cosim"
+    license = "MIT"
+
+    def __init__(self, **kwargs: Any) -> None:
+        kwargs.setdefault("instance_name", type(self).__name__)
+        super().__init__(**kwargs)
+        doc = inspect.getdoc(type(self)) or type(self).__name__
+        self.description = doc.splitlines()[0]
+        self.guid = self.model_guid()
+        self.start_time = 0.0
+        for var in self.variables:
+            self._declare(var)
+
+    # ----------------------------------------------------------------- hooks
+    def initialize(self) -> None:
+        """Compute derived quantities and the outputs at the start time from the parameters."""
+
+    def step(self, t: float, h: float) -> None:
+        """Advance the model from ``t`` to ``t + h`` and set the outputs at ``t + h``.
+
+        Parameters
+        ----------
+        t : float
+            Time at the start of the step [s].
+        h : float
+            Step size [s], > 0.
+        """
+        raise NotImplementedError
+
+    # ------------------------------------------------------------ FMI side
+    @classmethod
+    def model_guid(cls) -> str:
+        """A GUID derived from the model's source, so equal sources give equal GUIDs."""
+        text = inspect.getsource(cls) + inspect.getsource(Block)
+        return str(uuid.uuid5(_NAMESPACE, hashlib.sha256(text.encode()).hexdigest()))
+
+    def setup_experiment(
+        self, start_time: float, stop_time: float | None = None, tolerance: float | None = None
+    ) -> None:
+        self.start_time = float(start_time)
+
+    def exit_initialization_mode(self) -> None:
+        self.initialize()
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        self.step(current_time, step_size)
+        return True
+
+    def reset(self) -> None:
+        """Return every variable to its start value (FMI reset)."""
+        for var in self.variables:
+            setattr(self, var.name, self._start_value(var))
+
+    @staticmethod
+    def _start_value(var: Var) -> Any:
+        if var.is_vector:
+            dtype = {"Real": float, "Integer": int, "Boolean": bool}[var.kind]
+            return np.array(var.start, dtype=dtype)
+        return var.start
+
+    def _declare(self, var: Var) -> None:
+        if var.causality not in _CAUSALITY:
+            raise ValueError(
+                f"{type(self).__name__}.{var.name}: causality must be one of "
+                f"{sorted(_CAUSALITY)}, got {var.causality!r}"
+            )
+        setattr(self, var.name, self._start_value(var))
+        causality = _CAUSALITY[var.causality]
+        if var.causality == "parameter":
+            variability, initial = Fmi2Variability.fixed, Fmi2Initial.exact
+        elif var.kind != "Real":
+            variability, initial = Fmi2Variability.discrete, Fmi2Initial.exact
+        else:
+            variability, initial = Fmi2Variability.continuous, Fmi2Initial.exact
+        if var.causality == "input":
+            initial = None  # inputs carry a start value but no initial attribute
+        names = [var.name] if not var.is_vector else [f"{var.name}[{i + 1}]" for i in range(var.size)]
+        for i, scalar_name in enumerate(names):
+            getter, setter = self._accessors(var, i)
+            kwargs = dict(
+                causality=causality,
+                variability=variability,
+                initial=initial,
+                description=var.description or None,
+                getter=getter,
+                setter=setter,
+            )
+            if var.kind == "Real":
+                self.register_variable(_UnitReal(scalar_name, var.unit, **kwargs), nested=False)
+            elif var.kind == "Integer":
+                self.register_variable(Integer(scalar_name, **kwargs), nested=False)
+            else:
+                self.register_variable(Boolean(scalar_name, **kwargs), nested=False)
+
+    def _accessors(self, var: Var, index: int) -> tuple[Any, Any]:
+        name = var.name
+        if not var.is_vector:
+            return (lambda: getattr(self, name)), (lambda v: setattr(self, name, v))
+
+        def get() -> Any:
+            return getattr(self, name)[index]
+
+        def set_(value: Any) -> None:
+            getattr(self, name)[index] = value
+
+        return get, set_
+
+    def to_xml(self, model_options: dict[str, str] | None = None) -> Element:
+        """Model description: pythonfmu's, plus unit definitions and a default experiment."""
+        from pythonfmu.default_experiment import DefaultExperiment
+
+        self.default_experiment = DefaultExperiment(
+            start_time=0.0, stop_time=self.default_stop, step_size=self.default_step
+        )
+        root = super().to_xml(model_options or {})
+        units = sorted({v.unit for v in self.variables if v.kind == "Real" and v.unit != "1"})
+        if units:
+            node = Element("UnitDefinitions")
+            for unit in units:
+                u = SubElement(node, "Unit", {"name": unit})
+                exps = UNIT_BASE.get(unit)
+                if exps is not None:
+                    SubElement(u, "BaseUnit", {k: str(e) for k, e in exps.items()})
+            position = list(root).index(root.find("CoSimulation")) + 1
+            root.insert(position, node)
+        return root
