@@ -1,0 +1,72 @@
+"""ins-cosim: co-simulation workbench for the initial alignment of inertial navigation systems.
+
+Python API::
+
+    import cosim
+    scenario = cosim.load_scenario("scenarios/demo.toml")
+    result = cosim.run(scenario)            # RunResult: result.data, result["sensor.m"]
+    result.save("out/demo")                 # results.csv + results.json
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from cosim.errors import FmuError, ScenarioError, SimulationError, UnitError, UserError
+from cosim.master import Connection, Master, MasterSettings, System
+from cosim.results import RunResult
+from cosim.scenario import Scenario, load_scenario
+
+__all__ = [
+    "Connection",
+    "FmuError",
+    "Master",
+    "MasterSettings",
+    "RunResult",
+    "Scenario",
+    "ScenarioError",
+    "SimulationError",
+    "System",
+    "UnitError",
+    "UserError",
+    "load_scenario",
+    "run",
+]
+
+
+def run(scenario: Scenario | str | Path, **overrides: object) -> RunResult:
+    """Run a scenario once.
+
+    Parameters
+    ----------
+    scenario : Scenario, str or Path
+        A loaded scenario or the path of its TOML file.
+    **overrides
+        Master settings to override (``stop``, ``step``, ``coupling``, ``record_every``).
+
+    Returns
+    -------
+    RunResult
+        The recording, ``time`` first, SI units, with metadata.
+
+    Raises
+    ------
+    ScenarioError, FmuError
+        Before anything runs, when the scenario is inconsistent.
+    SimulationError
+        When a block fails or outputs a non-finite value; ``error.result`` keeps what
+        was recorded up to then.
+    """
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    settings = scenario.settings
+    for key, value in overrides.items():
+        if not hasattr(settings, key):
+            raise TypeError(f"run() got an unexpected override '{key}'")
+        setattr(settings, key, value)
+    system, metadata = scenario.build()
+    master = Master(system, settings, metadata)
+    try:
+        return master.run()
+    finally:
+        master.terminate()

@@ -15,8 +15,37 @@ from models.block import Block
 
 MODELS_DIR = Path(models.__file__).resolve().parent
 
+# The FMU's entry module. pythonfmu imports it, then executes it once more per instance
+# with separate globals and locals (so: no comprehensions here, they would not see the
+# local names), and releases one reference to the module namespace that it never took
+# (pythonfmu 0.7 findClass): each execution keeps one reference to balance that, or the
+# namespace is freed under the module and the interpreter crashes later.
+# A `models` package imported earlier in the same process from another FMU's resources
+# may point to a folder deleted when that FMU was unloaded: forget it, so that this FMU
+# imports its own copy.
+ENTRY_SCRIPT = """\
+import os
+import sys
 
-def build_fmu(cls: type[Block], out_dir: Path) -> Path:
+_kept = sys.__dict__.setdefault("_ins_cosim_fmu_namespaces", [])
+_kept.append(globals())
+
+_previous = sys.modules.get("models")
+if _previous is not None:
+    _stale = False
+    for _folder in _previous.__path__:
+        if not os.path.isdir(_folder):
+            _stale = True
+    if _stale:
+        for _key in list(sys.modules):
+            if _key == "models" or _key.startswith("models."):
+                del sys.modules[_key]
+
+from {module} import {name}  # noqa: E402,F401
+"""
+
+
+def build_fmu(cls: type[Block], out_dir: Path, extra_files: tuple[Path, ...] = ()) -> Path:
     """Build ``out_dir/<ClassName>.fmu`` from a block class.
 
     Parameters
@@ -25,6 +54,8 @@ def build_fmu(cls: type[Block], out_dir: Path) -> Path:
         A :class:`models.block.Block` subclass defined in a module of ``models``.
     out_dir : Path
         Destination folder (created if missing).
+    extra_files : tuple of Path
+        Further modules to ship in the resources (for classes defined outside ``models``).
 
     Returns
     -------
@@ -37,9 +68,11 @@ def build_fmu(cls: type[Block], out_dir: Path) -> Path:
     out_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="ins_cosim_fmu_") as tmp:
         script = Path(tmp) / f"{cls.__name__}_fmu.py"
-        script.write_text(f"from {cls.__module__} import {cls.__name__}  # noqa: F401\n")
+        script.write_text(ENTRY_SCRIPT.format(module=cls.__module__, name=cls.__name__))
         return FmuBuilder.build_FMU(
-            script, dest=out_dir / f"{cls.__name__}.fmu", project_files=[MODELS_DIR]
+            script,
+            dest=out_dir / f"{cls.__name__}.fmu",
+            project_files=[MODELS_DIR, *map(Path, extra_files)],
         )
 
 

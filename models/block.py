@@ -158,7 +158,6 @@ class Block(Fmi2Slave):
         super().__init__(**kwargs)
         doc = inspect.getdoc(type(self)) or type(self).__name__
         self.description = doc.splitlines()[0]
-        self.guid = self.model_guid()
         self.start_time = 0.0
         for var in self.variables:
             self._declare(var)
@@ -183,7 +182,10 @@ class Block(Fmi2Slave):
     @classmethod
     def model_guid(cls) -> str:
         """A GUID derived from the model's source, so equal sources give equal GUIDs."""
-        text = inspect.getsource(cls) + inspect.getsource(Block)
+        try:
+            text = inspect.getsource(cls) + inspect.getsource(Block)
+        except OSError:  # source not on disk (e.g. a model loaded from an unloaded FMU)
+            text = f"{cls.__module__}.{cls.__qualname__}"
         return str(uuid.uuid5(_NAMESPACE, hashlib.sha256(text.encode()).hexdigest()))
 
     def setup_experiment(
@@ -226,7 +228,9 @@ class Block(Fmi2Slave):
             variability, initial = Fmi2Variability.continuous, Fmi2Initial.exact
         if var.causality == "input":
             initial = None  # inputs carry a start value but no initial attribute
-        names = [var.name] if not var.is_vector else [f"{var.name}[{i + 1}]" for i in range(var.size)]
+        names = (
+            [var.name] if not var.is_vector else [f"{var.name}[{i + 1}]" for i in range(var.size)]
+        )
         for i, scalar_name in enumerate(names):
             getter, setter = self._accessors(var, i)
             kwargs = dict(
@@ -264,6 +268,7 @@ class Block(Fmi2Slave):
         self.default_experiment = DefaultExperiment(
             start_time=0.0, stop_time=self.default_stop, step_size=self.default_step
         )
+        self.guid = self.model_guid()
         root = super().to_xml(model_options or {})
         units = sorted({v.unit for v in self.variables if v.kind == "Real" and v.unit != "1"})
         if units:

@@ -1,0 +1,52 @@
+# ins-cosim: every command sets itself up from nothing (Python 3.11, gcc, make).
+PYTHON ?= python3.11
+VENV   := .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.installed
+FMUDIR := fmus/build
+MODEL_SOURCES := $(wildcard models/*.py)
+
+.PHONY: all setup fmus demo test test-slow bench lint format clean
+
+all: test
+
+# Fall back to python3 when python3.11 is not on PATH under that name.
+$(STAMP): pyproject.toml
+	@command -v $(PYTHON) >/dev/null 2>&1 || { echo "using python3 ($$(python3 --version))"; }
+	@test -x $(PY) || { command -v $(PYTHON) >/dev/null 2>&1 && $(PYTHON) -m venv $(VENV) || python3 -m venv $(VENV); }
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[test]'
+	@touch $(STAMP)
+
+setup: $(STAMP)
+
+$(FMUDIR)/.built: $(STAMP) $(MODEL_SOURCES)
+	$(VENV)/bin/ins-cosim fmus --build --dir $(FMUDIR)
+	@touch $@
+
+fmus: $(FMUDIR)/.built
+
+demo: fmus
+	$(VENV)/bin/ins-cosim run scenarios/demo.toml --out out/demo
+	$(VENV)/bin/ins-cosim run scenarios/demo.toml --fmu-dir $(FMUDIR) --out out/demo_fmu --no-plot
+	@echo "demo results: out/demo/results.csv, out/demo/results.json, out/demo/results.png"
+
+test: fmus
+	$(VENV)/bin/pytest
+
+test-slow: fmus
+	$(VENV)/bin/pytest -m slow
+
+bench: fmus
+	$(PY) -m benchmarks
+
+lint: $(STAMP)
+	$(VENV)/bin/ruff check cosim models tests benchmarks
+	$(VENV)/bin/ruff format --check cosim models tests benchmarks
+
+format: $(STAMP)
+	$(VENV)/bin/ruff format cosim models tests benchmarks
+	$(VENV)/bin/ruff check --fix cosim models tests benchmarks
+
+clean:
+	rm -rf $(FMUDIR) out .pytest_cache

@@ -1,0 +1,419 @@
+"""The block protocol the master uses for everything, and its two hosts.
+
+A *block* is anything with FMI co-simulation semantics: variables with
+causality, variability, unit and start value; a life cycle
+``instantiate -> setup(t0, parameters) -> [set inputs] -> exit_init -> do_step(t, h)* ->
+terminate``; and ``reset``. Two hosts implement it:
+
+- :class:`InProcessHost` runs a :class:`models.block.Block` class directly (fast path);
+  it makes exactly the calls an FMU wrapper makes, so results are identical.
+- :class:`FmuHost` runs an FMU file through fmpy (FMI 2.0 co-simulation; FMI 3.0
+  co-simulation where fmpy supports it), ours or a vendor's.
+
+Values cross the protocol as lists of scalars addressed by value reference.
+"""
+
+from __future__ import annotations
+
+import abc
+import ctypes
+import hashlib
+import importlib
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import models  # noqa: F401  (imported before any FMU, so FMUs of ours reuse this copy)
+from cosim.errors import FmuError
+
+#: Variable types that connections and the recorder handle.
+REAL = "Real"
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One scalar variable of a block.
+
+    Attributes
+    ----------
+    name : str
+        Scalar name, ``x`` or ``x[i]`` for vector elements.
+    vr : int
+        Value reference.
+    type : str
+        ``"Real"``, ``"Integer"``, ``"Boolean"`` or ``"String"``.
+    causality : str
+        FMI causality (``parameter``, ``input``, ``output``, ``local``, ...).
+    variability : str
+        FMI variability.
+    unit : str
+        Unit as declared (``"1"`` when none).
+    start : Any
+        Start value, or None when the block declares none.
+    description : str
+        The block's description of the variable.
+    """
+
+    name: str
+    vr: int
+    type: str
+    causality: str
+    variability: str
+    unit: str = "1"
+    start: Any = None
+    description: str = ""
+
+
+class BlockHost(abc.ABC):
+    """What the master needs from a block. Subclasses wrap one simulation unit.
+
+    Parameters
+    ----------
+    name : str
+        Instance name (the block's name in the scenario).
+    """
+
+    #: "model" (in-process class) or "fmu".
+    kind: str = ""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+        self.variables: dict[str, Variable] = {}
+        self.guid: str = ""
+        self.sha256: str = ""
+        self.source: str = ""
+        self.fmi_version: str = "2.0"
+
+    # -- metadata ---------------------------------------------------------
+    def by_causality(self, causality: str) -> list[Variable]:
+        """Variables with the given causality, in declaration order."""
+        return [v for v in self.variables.values() if v.causality == causality]
+
+    # -- life cycle ---------------------------------------------------------
+    @abc.abstractmethod
+    def setup(self, start_time: float, parameters: dict[str, Any]) -> None:
+        """Start the experiment at ``start_time`` and enter initialisation with ``parameters``.
+
+        Parameters
+        ----------
+        start_time : float
+            t0 [s].
+        parameters : dict
+            Scalar variable name -> value, in the variable's declared unit.
+        """
+
+    @abc.abstractmethod
+    def exit_init(self) -> None:
+        """Leave initialisation mode; outputs are valid at t0 afterwards."""
+
+    @abc.abstractmethod
+    def do_step(self, t: float, h: float) -> None:
+        """Advance from ``t`` to ``t + h``; raise :class:`BlockCallError` when the block fails."""
+
+    @abc.abstractmethod
+    def get_real(self, vrs: list[int]) -> list[float]:
+        """Current values of Real variables."""
+
+    @abc.abstractmethod
+    def set_real(self, vrs: list[int], values: list[float]) -> None:
+        """Set Real variables (inputs, or parameters during setup)."""
+
+    @abc.abstractmethod
+    def reset(self) -> None:
+        """Return to the state after instantiation (FMI reset)."""
+
+    @abc.abstractmethod
+    def terminate(self) -> None:
+        """End the experiment and free resources."""
+
+    def _apply_parameters(self, parameters: dict[str, Any], setters: dict[str, Any]) -> None:
+        for name, value in parameters.items():
+            var = self.variables[name]
+            setters[var.type]([var.vr], [value])
+
+
+class BlockCallError(Exception):
+    """A block reported failure in a call; ``call`` names the call, message the reason."""
+
+    def __init__(self, call: str, message: str) -> None:
+        self.call = call
+        super().__init__(message)
+
+
+class InProcessHost(BlockHost):
+    """Runs a :class:`models.block.Block` subclass in this process.
+
+    Parameters
+    ----------
+    name : str
+        Instance name.
+    cls : type
+        The block class.
+    """
+
+    kind = "model"
+
+    def __init__(self, name: str, cls: type) -> None:
+        super().__init__(name)
+        self.cls = cls
+        self.source = f"{cls.__module__}.{cls.__qualname__}"
+        self.guid = cls.model_guid() if hasattr(cls, "model_guid") else ""
+        source_file = importlib.import_module(cls.__module__).__file__
+        self.sha256 = _sha256(Path(source_file)) if source_file else ""
+        self._new_instance()
+        for sv in self.instance.vars.values():
+            kind = type(sv).__name__
+            kind = "Real" if kind == "_UnitReal" else kind
+            start = sv.getter()
+            self.variables[sv.name] = Variable(
+                name=sv.name,
+                vr=sv.value_reference,
+                type=kind,
+                causality=sv.causality.name,
+                variability=sv.variability.name if sv.variability else "continuous",
+                unit=getattr(sv, "unit", "1"),
+                start=start,
+                description=sv.description or "",
+            )
+
+    def _new_instance(self) -> None:
+        self.instance = self.cls(instance_name=self.name)
+        inst = self.instance
+        self._setters = {
+            "Real": inst.set_real,
+            "Integer": inst.set_integer,
+            "Boolean": inst.set_boolean,
+            "String": inst.set_string,
+        }
+
+    def setup(self, start_time: float, parameters: dict[str, Any]) -> None:
+        self.instance.setup_experiment(start_time, None, None)
+        self._apply_parameters(parameters, self._setters)
+        self.instance.enter_initialization_mode()
+
+    def exit_init(self) -> None:
+        try:
+            self.instance.exit_initialization_mode()
+        except Exception as exc:  # the model's own error, reported with block and time
+            raise BlockCallError(
+                "exit_initialization_mode", f"{type(exc).__name__}: {exc}"
+            ) from exc
+
+    def do_step(self, t: float, h: float) -> None:
+        try:
+            ok = self.instance.do_step(t, h)
+        except Exception as exc:
+            raise BlockCallError("do_step", f"{type(exc).__name__}: {exc}") from exc
+        if not ok:
+            raise BlockCallError("do_step", "the block returned failure")
+
+    def get_real(self, vrs: list[int]) -> list[float]:
+        return self.instance.get_real(vrs)
+
+    def set_real(self, vrs: list[int], values: list[float]) -> None:
+        self.instance.set_real(vrs, values)
+
+    def reset(self) -> None:
+        self._new_instance()
+
+    def terminate(self) -> None:
+        self.instance.terminate()
+
+
+def _sha256(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+class FmuHost(BlockHost):
+    """Runs an FMU file through fmpy.
+
+    Parameters
+    ----------
+    name : str
+        Instance name.
+    path : Path
+        The ``.fmu`` file (FMI 2.0 or 3.0, co-simulation).
+
+    Raises
+    ------
+    FmuError
+        Missing file, unreadable model description, or no co-simulation interface.
+    """
+
+    kind = "fmu"
+
+    def __init__(self, name: str, path: Path) -> None:
+        from fmpy import read_model_description
+
+        super().__init__(name)
+        path = Path(path)
+        self.path = path
+        self.source = str(path)
+        if not path.is_file():
+            raise FmuError(f"block '{name}': FMU file '{path}' does not exist (run `make fmus`?)")
+        try:
+            md = read_model_description(str(path), validate=False)
+        except Exception as exc:
+            raise FmuError(f"block '{name}': cannot read FMU '{path}': {exc}") from exc
+        if md.coSimulation is None:
+            raise FmuError(
+                f"block '{name}': FMU '{path}' implements only Model Exchange; ins-cosim "
+                f"steps blocks as Co-Simulation units. Export it with the Co-Simulation "
+                f"interface (or ask its vendor for a Co-Simulation FMU)."
+            )
+        if md.fmiVersion not in ("2.0", "3.0"):
+            raise FmuError(
+                f"block '{name}': FMU '{path}' is FMI {md.fmiVersion}; expected FMI 2.0 or 3.0"
+            )
+        self.model_description = md
+        self.fmi_version = md.fmiVersion
+        self.guid = md.guid
+        self.sha256 = _sha256(path)
+        self.messages: list[str] = []
+        for v in md.modelVariables:
+            unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
+            vtype = {"Float64": "Real", "Float32": "Real", "Int32": "Integer"}.get(v.type, v.type)
+            start = v.start
+            if start is not None and vtype == "Real":
+                start = float(start)
+            elif start is not None and vtype == "Integer":
+                start = int(start)
+            elif start is not None and vtype == "Boolean":
+                start = start in (True, "true", "1", 1)
+            self.variables[v.name] = Variable(
+                name=v.name,
+                vr=v.valueReference,
+                type=vtype,
+                causality=v.causality,
+                variability=v.variability or "continuous",
+                unit=unit or "1",
+                start=start,
+                description=v.description or "",
+            )
+        self._unzipdir = tempfile.mkdtemp(prefix=f"ins_cosim_{name}_")
+        try:
+            from fmpy import extract
+
+            extract(str(path), self._unzipdir)
+            self._instantiate()
+        except FmuError:
+            raise
+        except Exception as exc:
+            shutil.rmtree(self._unzipdir, ignore_errors=True)
+            log = (
+                f" (FMU log: {' | '.join(m.strip() for m in self.messages[-3:])})"
+                if self.messages
+                else ""
+            )
+            raise FmuError(f"block '{name}': cannot instantiate FMU '{path}': {exc}{log}") from exc
+
+    def _logger(self, component: Any, instance: bytes, status: int, category: bytes, msg: bytes):
+        text = msg.decode("utf-8", "replace") if isinstance(msg, bytes) else str(msg)
+        self.messages.append(text)
+        del self.messages[:-20]
+
+    def _instantiate(self) -> None:
+        md = self.model_description
+        ident = md.coSimulation.modelIdentifier
+        if md.fmiVersion == "2.0":
+            from fmpy import calloc, free
+            from fmpy.fmi2 import (
+                FMU2Slave,
+                fmi2CallbackAllocateMemoryTYPE,
+                fmi2CallbackFreeMemoryTYPE,
+                fmi2CallbackFunctions,
+                fmi2CallbackLoggerTYPE,
+            )
+
+            fmu = FMU2Slave(
+                guid=md.guid,
+                unzipDirectory=self._unzipdir,
+                modelIdentifier=ident,
+                instanceName=self.name,
+            )
+            cb = fmi2CallbackFunctions()
+            cb.logger = fmi2CallbackLoggerTYPE(self._logger)
+            cb.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
+            cb.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
+            try:
+                from fmpy.logging import addLoggerProxy
+            except ImportError:  # pragma: no cover - older fmpy: messages unformatted
+                pass
+            else:
+                addLoggerProxy(ctypes.byref(cb))
+            self._callbacks = cb
+            fmu.instantiate(callbacks=cb, loggingOn=True)
+            self._get = {"Real": fmu.getReal, "Integer": fmu.getInteger, "Boolean": fmu.getBoolean}
+            self._set = {
+                "Real": fmu.setReal,
+                "Integer": fmu.setInteger,
+                "Boolean": fmu.setBoolean,
+                "String": fmu.setString,
+            }
+        else:
+            from fmpy.fmi3 import FMU3Slave
+
+            fmu = FMU3Slave(
+                guid=md.guid,
+                unzipDirectory=self._unzipdir,
+                modelIdentifier=ident,
+                instanceName=self.name,
+            )
+            fmu.instantiate(loggingOn=True, logMessage=None)
+            self._get = {
+                "Real": fmu.getFloat64,
+                "Integer": fmu.getInt32,
+                "Boolean": fmu.getBoolean,
+            }
+            self._set = {
+                "Real": fmu.setFloat64,
+                "Integer": fmu.setInt32,
+                "Boolean": fmu.setBoolean,
+                "String": fmu.setString,
+            }
+        self.fmu = fmu
+
+    def _call(self, call: str, fn: Any, *args: Any) -> Any:
+        try:
+            return fn(*args)
+        except Exception as exc:
+            detail = f" (FMU log: {self.messages[-1].strip()})" if self.messages else ""
+            raise BlockCallError(call, f"{exc}{detail}") from exc
+
+    def setup(self, start_time: float, parameters: dict[str, Any]) -> None:
+        if self.fmi_version == "2.0":
+            self._call("fmi2SetupExperiment", self.fmu.setupExperiment, None, start_time)
+            self._apply_parameters(parameters, self._set)
+            self._call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
+        else:
+            self._apply_parameters(parameters, self._set)
+            self._call(
+                "fmi3EnterInitializationMode",
+                self.fmu.enterInitializationMode,
+                None,
+                start_time,
+            )
+
+    def exit_init(self) -> None:
+        self._call("exitInitializationMode", self.fmu.exitInitializationMode)
+
+    def do_step(self, t: float, h: float) -> None:
+        self._call("doStep", self.fmu.doStep, t, h)
+
+    def get_real(self, vrs: list[int]) -> list[float]:
+        return list(self._get["Real"](vrs))
+
+    def set_real(self, vrs: list[int], values: list[float]) -> None:
+        self._set["Real"](vrs, values)
+
+    def reset(self) -> None:
+        self._call("reset", self.fmu.reset)
+
+    def terminate(self) -> None:
+        try:
+            self.fmu.terminate()
+        finally:
+            self.fmu.freeInstance()
+            shutil.rmtree(self._unzipdir, ignore_errors=True)

@@ -1,0 +1,80 @@
+"""Typed exceptions of ins-cosim.
+
+Every error a user can cause is a :class:`UserError`: the CLI prints its message
+(which names the file, key, block or variable and how to fix it) and exits with a
+non-zero code, without a traceback. Everything else is a bug and keeps its traceback.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+class UserError(Exception):
+    """Base of every error caused by the user's input (scenario, FMU, command line)."""
+
+    exit_code = 3
+
+
+class ScenarioError(UserError, ValueError):
+    """A scenario file is malformed or inconsistent.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong and how to fix it.
+    file : str, optional
+        The scenario file.
+    key : str, optional
+        The TOML key (dotted path) where the problem is.
+    """
+
+    def __init__(self, message: str, file: str | None = None, key: str | None = None) -> None:
+        self.file = file
+        self.key = key
+        self.message = message
+        where = ", ".join(x for x in (file, f"key '{key}'" if key else None) if x)
+        super().__init__(f"{where}: {message}" if where else message)
+
+
+class UnitError(ScenarioError):
+    """A unit is unknown, or two units do not have the same dimension."""
+
+
+class FmuError(UserError, ValueError):
+    """An FMU file is missing, unreadable, or not usable for co-simulation."""
+
+
+class SimulationError(UserError, RuntimeError):
+    """A run stopped: a block failed or produced a non-finite output.
+
+    Parameters
+    ----------
+    message : str
+        What happened.
+    block : str
+        The block that failed.
+    time : float
+        Simulated time of the failure [s].
+    variable : str, optional
+        The variable (or FMI call) concerned.
+    result : Any, optional
+        The :class:`cosim.results.RunResult` recorded up to the failure.
+    """
+
+    exit_code = 4
+
+    def __init__(
+        self,
+        message: str,
+        block: str,
+        time: float,
+        variable: str | None = None,
+        result: Any = None,
+    ) -> None:
+        self.block = block
+        self.time = time
+        self.variable = variable
+        self.result = result
+        what = f"block '{block}'" + (f", variable '{variable}'" if variable else "")
+        super().__init__(f"{what}, t = {time:.6g} s: {message}")

@@ -1,0 +1,412 @@
+"""The master algorithm: fixed macro step, multi-rate, Gauss-Seidel or Jacobi coupling.
+
+The coupling rule (README, "The coupling rule", has the diagram):
+
+- Time is ``t_n = t0 + n * h`` from an integer counter ``n``; nothing accumulates.
+- A block of rate ``k`` steps once every ``k`` macro steps, in the macro steps ``n`` with
+  ``(n + 1) % k == 0``, from ``t_{n+1-k}`` to ``t_{n+1}`` (step size ``k h``): its step *ends*
+  on the macro step's end, so what it publishes is valid at the same instant as everyone
+  else's. Its inputs are set just before it steps and held over its step; its outputs
+  hold their last value until its next step. With ``k = 1`` this is the plain rule.
+- **Gauss-Seidel** (default): blocks step in the topological order of the connections.
+  A block reads each input from the value its source holds *at that moment*: a source
+  earlier in the order has already stepped in this macro step, so the sink sees the
+  source's value at ``t_{n+1}`` (no delay). A connection that closes a feedback loop runs
+  against the order: its sink sees the value at ``t_n`` (one macro step of delay), and
+  the run warns with the loop's blocks and the delayed connection.
+- **Jacobi**: every block reads its inputs from the values all sources held at ``t_n``,
+  before anyone stepped (one macro step of delay on every connection; order irrelevant).
+- Initialisation runs in the same order: each block is initialised with inputs taken from
+  the t0 outputs of its already-initialised sources (start values for delayed ones).
+- A block error or a non-finite output stops the run with a :class:`SimulationError`
+  naming block, variable or call and time; the result recorded so far is attached.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from cosim.blocks import REAL, BlockCallError, BlockHost
+from cosim.errors import ScenarioError, SimulationError
+from cosim.results import RunResult
+
+GAUSS_SEIDEL = "gauss-seidel"
+JACOBI = "jacobi"
+
+
+class CouplingWarning(UserWarning):
+    """A feedback loop was broken with a one-step delay."""
+
+
+@dataclass(frozen=True)
+class Connection:
+    """A scalar link from an output to an input.
+
+    Attributes
+    ----------
+    src_block, src_var : str
+        Source block and its output (scalar name).
+    dst_block, dst_var : str
+        Sink block and its input (scalar name).
+    factor : float
+        Unit conversion applied to the value (source unit -> sink unit).
+    """
+
+    src_block: str
+    src_var: str
+    dst_block: str
+    dst_var: str
+    factor: float = 1.0
+
+    def __str__(self) -> str:
+        return f"{self.src_block}.{self.src_var} -> {self.dst_block}.{self.dst_var}"
+
+
+@dataclass
+class MasterSettings:
+    """Master settings.
+
+    Attributes
+    ----------
+    step : float
+        Macro step h [s].
+    stop : float
+        Stop time [s]; ``stop - start`` must be a whole number of steps.
+    start : float
+        Start time t0 [s].
+    coupling : str
+        ``"gauss-seidel"`` or ``"jacobi"``.
+    record_every : int
+        Record every k-th macro step (t0 is always recorded).
+    """
+
+    step: float
+    stop: float
+    start: float = 0.0
+    coupling: str = GAUSS_SEIDEL
+    record_every: int = 1
+
+    @property
+    def n_steps(self) -> int:
+        """Number of macro steps."""
+        n = (self.stop - self.start) / self.step
+        return int(round(n))
+
+
+@dataclass
+class System:
+    """Blocks, their parameters and rates, connections and what to record.
+
+    Attributes
+    ----------
+    blocks : dict
+        Block name -> host, in declaration order.
+    connections : list of Connection
+        Scalar links.
+    parameters : dict
+        Block name -> {scalar variable name: value}.
+    rates : dict
+        Block name -> k (steps every k-th macro step); default 1.
+    record : list of (str, str)
+        (block, scalar output) pairs to record; None records every Real output.
+    """
+
+    blocks: dict[str, BlockHost]
+    connections: list[Connection]
+    parameters: dict[str, dict[str, object]] = field(default_factory=dict)
+    rates: dict[str, int] = field(default_factory=dict)
+    record: list[tuple[str, str]] | None = None
+
+
+def _strongly_connected(nodes: list[str], edges: dict[str, set[str]]) -> list[list[str]]:
+    """Tarjan's algorithm, iterative; components in no particular order."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on_stack: set[str] = set()
+    comps: list[list[str]] = []
+    counter = 0
+    for root in nodes:
+        if root in index:
+            continue
+        work = [(root, iter(sorted(edges[root], key=nodes.index)))]
+        index[root] = low[root] = counter
+        counter += 1
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = counter
+                    counter += 1
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(edges[child], key=nodes.index))))
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[node])
+            if low[node] == index[node]:
+                comp = []
+                while True:
+                    w = stack.pop()
+                    on_stack.discard(w)
+                    comp.append(w)
+                    if w == node:
+                        break
+                comps.append(sorted(comp, key=nodes.index))
+    return comps
+
+
+def schedule(
+    names: list[str], connections: list[Connection]
+) -> tuple[list[str], list[Connection], list[list[str]]]:
+    """Gauss-Seidel order of the blocks and the connections delayed to break loops.
+
+    Blocks are ordered topologically; ties and the order inside a feedback loop follow
+    the declaration order. Inside a loop, a connection whose sink comes before (or is)
+    its source is delayed by one macro step.
+
+    Parameters
+    ----------
+    names : list of str
+        Block names in declaration order.
+    connections : list of Connection
+        Scalar links.
+
+    Returns
+    -------
+    order : list of str
+        Stepping order.
+    delayed : list of Connection
+        Connections that run against the order (one macro step of delay).
+    loops : list of list of str
+        The blocks of each feedback loop, in stepping order.
+    """
+    edges: dict[str, set[str]] = {n: set() for n in names}
+    for c in connections:
+        edges[c.src_block].add(c.dst_block)
+    comps = _strongly_connected(names, edges)
+    comp_of = {n: i for i, comp in enumerate(comps) for n in comp}
+    indeg = {i: 0 for i in range(len(comps))}
+    succ: dict[int, set[int]] = {i: set() for i in range(len(comps))}
+    for a in names:
+        for b in edges[a]:
+            ca, cb = comp_of[a], comp_of[b]
+            if ca != cb and cb not in succ[ca]:
+                succ[ca].add(cb)
+                indeg[cb] += 1
+    ready = [i for i in indeg if indeg[i] == 0]
+    order: list[str] = []
+    while ready:
+        ready.sort(key=lambda i: names.index(comps[i][0]))
+        i = ready.pop(0)
+        order.extend(comps[i])
+        for j in succ[i]:
+            indeg[j] -= 1
+            if indeg[j] == 0:
+                ready.append(j)
+    position = {n: i for i, n in enumerate(order)}
+    delayed = [c for c in connections if position[c.dst_block] <= position[c.src_block]]
+    loops = [comp for comp in comps if len(comp) > 1 or comp[0] in edges[comp[0]]]
+    loops = [sorted(comp, key=position.__getitem__) for comp in loops]
+    return order, delayed, loops
+
+
+class Master:
+    """Steps a :class:`System` with fixed macro steps.
+
+    Parameters
+    ----------
+    system : System
+        Blocks, connections, parameters, rates, recording.
+    settings : MasterSettings
+        Step, start, stop, coupling, record interval.
+    metadata : dict, optional
+        Copied into the result (scenario hash, seeds, ...).
+    """
+
+    def __init__(
+        self, system: System, settings: MasterSettings, metadata: dict | None = None
+    ) -> None:
+        self.system = system
+        self.settings = settings
+        self.metadata = dict(metadata or {})
+        s = settings
+        if not s.step > 0:
+            raise ScenarioError(f"master.step must be > 0 s, got {s.step}", key="master.step")
+        n = (s.stop - s.start) / s.step
+        if n < 1 or not math.isclose(n, round(n), rel_tol=0, abs_tol=1e-9 * max(1.0, n)):
+            raise ScenarioError(
+                f"stop - start = {s.stop - s.start} s is not a whole positive number of "
+                f"steps of {s.step} s; change master.stop or master.step",
+                key="master.stop",
+            )
+        if s.coupling not in (GAUSS_SEIDEL, JACOBI):
+            raise ScenarioError(
+                f"expected 'gauss-seidel' or 'jacobi', got '{s.coupling}'", key="master.coupling"
+            )
+        for name, k in system.rates.items():
+            if not isinstance(k, int) or k < 1 or s.n_steps % k:
+                raise ScenarioError(
+                    f"rate must be a positive integer dividing the number of macro steps "
+                    f"({s.n_steps}), got {k!r}",
+                    key=f"blocks.{name}.rate",
+                )
+        names = list(system.blocks)
+        self.order, self.delayed, self.loops = schedule(names, system.connections)
+        if s.coupling == JACOBI:
+            self.delayed = list(system.connections)
+        self._build_tables()
+
+    def _build_tables(self) -> None:
+        sys_ = self.system
+        slots: dict[tuple[str, str], int] = {}
+        self._outputs: dict[str, tuple[list[int], np.ndarray, list[str]]] = {}
+        start_values: list[float] = []
+        for name in self.order:
+            host = sys_.blocks[name]
+            outs = [v for v in host.by_causality("output") if v.type == REAL]
+            idx = []
+            for v in outs:
+                slots[(name, v.name)] = len(start_values)
+                idx.append(len(start_values))
+                start_values.append(float(v.start) if v.start is not None else math.nan)
+            self._outputs[name] = ([v.vr for v in outs], np.array(idx, dtype=int), outs)
+        self._start_values = np.array(start_values)
+        self._inputs: dict[str, tuple[list[int], np.ndarray, np.ndarray]] = {}
+        for name in self.order:
+            host = sys_.blocks[name]
+            conns = [c for c in sys_.connections if c.dst_block == name]
+            self._inputs[name] = (
+                [host.variables[c.dst_var].vr for c in conns],
+                np.array([slots[(c.src_block, c.src_var)] for c in conns], dtype=int),
+                np.array([c.factor for c in conns]),
+            )
+        record = sys_.record
+        if record is None:
+            record = [(b, v.name) for b in sys_.blocks for v in self._outputs[b][2]]
+        self.record = record
+        self._record_idx = np.array([slots[r] for r in record], dtype=int)
+
+    def _warn_loops(self) -> None:
+        if self.settings.coupling != GAUSS_SEIDEL:
+            return
+        for loop in self.loops:
+            links = [str(c) for c in self.delayed if c.dst_block in loop and c.src_block in loop]
+            chain = " -> ".join(loop + [loop[0]])
+            warnings.warn(
+                f"feedback loop {chain}: connection(s) {', '.join(links)} "
+                f"delayed by one macro step",
+                CouplingWarning,
+                stacklevel=3,
+            )
+
+    def run(self) -> RunResult:
+        """Initialise every block, step to the stop time, and return the recording.
+
+        Returns
+        -------
+        RunResult
+            Recording (structured array, ``time`` first) and metadata.
+
+        Raises
+        ------
+        SimulationError
+            A block failed or produced a non-finite output; ``error.result`` holds the
+            recording up to the last completed macro step.
+        """
+        self._warn_loops()
+        s = self.settings
+        sys_ = self.system
+        h, t0, n_steps = s.step, s.start, s.n_steps
+        n_rows = n_steps // s.record_every + 1
+        names = ["time"] + [f"{b}.{v}" for b, v in self.record]
+        data = np.zeros(n_rows, dtype=[(n, "f8") for n in names])
+        values = self._start_values.copy()
+        rates = [sys_.rates.get(name, 1) for name in self.order]
+        jacobi = s.coupling == JACOBI
+        row = 0
+
+        def result(status: str, error: str = "") -> RunResult:
+            meta = dict(self.metadata)
+            meta["master"] = {
+                "step": h,
+                "start": t0,
+                "stop": s.stop,
+                "coupling": s.coupling,
+                "record_every": s.record_every,
+                "order": self.order,
+                "delayed": [str(c) for c in self.delayed],
+                "rates": dict(zip(self.order, rates, strict=True)),
+            }
+            return RunResult(data[:row].copy(), meta, status=status, error=error)
+
+        def fail(exc: Exception, name: str, t: float, variable: str | None) -> SimulationError:
+            err = SimulationError(str(exc), block=name, time=t, variable=variable)
+            err.result = result("failed", str(err))
+            return err
+
+        def transfer(name: str, source: np.ndarray) -> None:
+            vrs, idx, factor = self._inputs[name]
+            if vrs:
+                sys_.blocks[name].set_real(vrs, (source[idx] * factor).tolist())
+
+        def collect(name: str, t: float) -> None:
+            vrs, idx, outs = self._outputs[name]
+            if not vrs:
+                return
+            out = np.asarray(sys_.blocks[name].get_real(vrs), dtype=float)
+            if not np.all(np.isfinite(out)):
+                bad = outs[int(np.flatnonzero(~np.isfinite(out))[0])]
+                raise fail(
+                    ValueError(f"output is {out[outs.index(bad)]} (not finite)"), name, t, bad.name
+                )
+            values[idx] = out
+
+        # -- initialisation, in stepping order ----------------------------------
+        for name in self.order:
+            host = sys_.blocks[name]
+            try:
+                host.setup(t0, sys_.parameters.get(name, {}))
+                transfer(name, values)
+                host.exit_init()
+            except BlockCallError as exc:
+                raise fail(exc, name, t0, exc.call) from exc
+            collect(name, t0)
+        data[0] = (t0, *values[self._record_idx])
+        row = 1
+
+        # -- macro steps ----------------------------------------------------------
+        for n in range(n_steps):
+            source = values.copy() if jacobi else values
+            for name, k in zip(self.order, rates, strict=True):
+                if (n + 1) % k:
+                    continue
+                transfer(name, source)
+                t_begin = t0 + (n + 1 - k) * h
+                try:
+                    sys_.blocks[name].do_step(t_begin, k * h)
+                except BlockCallError as exc:
+                    raise fail(exc, name, t_begin, exc.call) from exc
+                collect(name, t0 + (n + 1) * h)
+            if (n + 1) % s.record_every == 0:
+                data[row] = (t0 + (n + 1) * h, *values[self._record_idx])
+                row += 1
+        return result("completed")
+
+    def terminate(self) -> None:
+        """Terminate every block (frees FMU instances)."""
+        for host in self.system.blocks.values():
+            try:
+                host.terminate()
+            except Exception as exc:  # terminating after a failure may fail again
+                warnings.warn(f"block '{host.name}': terminate failed: {exc}", stacklevel=2)

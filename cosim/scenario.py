@@ -1,0 +1,581 @@
+"""Scenario files (TOML): blocks, parameters with units, connections, master, output.
+
+Format (README, "Scenario files", is the user's reference)::
+
+    [scenario]
+    name = "demo"
+
+    [master]
+    step = "10 ms"              # numbers are SI; strings carry a unit
+    stop = "60 s"
+    start = 0.0                 # optional
+    coupling = "gauss-seidel"   # or "jacobi"
+
+    [blocks.flexure]
+    model = "GaussMarkov2"      # a class in models/ ... or
+    # fmu = "../fmus/build/GaussMarkov2.fmu"   (relative to this file) ... or
+    # class = "package.module:ClassName"
+    rate = 1                    # steps every k-th macro step
+    parameters = { tau = "300 s", sigma = "2 arcmin", seed = 1 }
+
+    connections = ["flexure.x -> sensor.u"]   # vectors expand: a.v -> b.w wires [1]..[n]
+
+    [output]
+    variables = ["flexure", "sensor.m"]        # blocks or variables; default every output
+    every = 1                                  # record every k-th macro step
+
+Loading checks everything that can be checked without running: every problem is a
+:class:`~cosim.errors.ScenarioError` naming the file and key and saying how to fix it.
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import importlib
+import re
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from cosim.blocks import REAL, BlockHost, FmuHost, InProcessHost, Variable
+from cosim.errors import FmuError, ScenarioError, UnitError
+from cosim.master import GAUSS_SEIDEL, JACOBI, Connection, MasterSettings, System
+from cosim.units import conversion_factor, to_unit
+
+TOP_KEYS = {"scenario", "master", "blocks", "connections", "output", "requirements", "campaign"}
+BLOCK_KEYS = {"model", "fmu", "class", "rate", "parameters", "description"}
+MASTER_KEYS = {"step", "stop", "start", "coupling"}
+OUTPUT_KEYS = {"variables", "every"}
+_LINK = re.compile(r"^\s*(\w+)\.([\w\[\]]+)\s*->\s*(\w+)\.([\w\[\]]+)\s*$")
+_NAME = re.compile(r"^[A-Za-z_]\w*$")
+_DUPLICATE = re.compile(r"Cannot (?:declare|overwrite) \('blocks', '(\w+)'\) twice \(at (line \d+)")
+
+
+@dataclass
+class BlockSpec:
+    """One ``[blocks.<name>]`` table.
+
+    Attributes
+    ----------
+    name : str
+        Block name.
+    kind : str
+        ``"model"``, ``"fmu"`` or ``"class"``.
+    source : str
+        Model class name, FMU path (absolute) or ``module:Class``.
+    rate : int
+        Steps every ``rate``-th macro step.
+    parameters : dict
+        Raw values as written (units not yet applied).
+    """
+
+    name: str
+    kind: str
+    source: str
+    rate: int = 1
+    parameters: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class Scenario:
+    """A parsed scenario file (not yet instantiated: see :meth:`build`).
+
+    Attributes
+    ----------
+    path : Path
+        The file.
+    sha256 : str
+        Hash of the file's bytes.
+    name : str
+        ``scenario.name`` (default: the file stem).
+    settings : MasterSettings
+        Step, stop, start, coupling, record interval (SI).
+    blocks : dict
+        Block name -> :class:`BlockSpec`, in file order.
+    connections : list of str
+        Connection strings as written.
+    outputs : list of str or None
+        ``output.variables`` (None: every output).
+    raw : dict
+        The whole TOML document (requirements and campaign tables are read elsewhere).
+    """
+
+    path: Path
+    sha256: str
+    name: str
+    settings: MasterSettings
+    blocks: dict[str, BlockSpec]
+    connections: list[str]
+    outputs: list[str] | None
+    raw: dict[str, Any]
+
+    def error(self, message: str, key: str | None = None) -> ScenarioError:
+        """A :class:`ScenarioError` located in this file."""
+        return ScenarioError(message, file=str(self.path), key=key)
+
+    def use_fmus(self, fmu_dir: str | Path) -> None:
+        """Run every built-in model from ``<fmu_dir>/<Model>.fmu`` instead of in-process.
+
+        Parameters
+        ----------
+        fmu_dir : str or Path
+            Folder of FMUs built by ``make fmus`` (normally ``fmus/build``).
+        """
+        for spec in self.blocks.values():
+            if spec.kind == "model":
+                spec.kind = "fmu"
+                spec.source = str((Path(fmu_dir) / f"{spec.source}.fmu").resolve())
+
+    def build(self) -> tuple[System, dict[str, Any]]:
+        """Instantiate every block and resolve parameters, connections and outputs.
+
+        Returns
+        -------
+        system : System
+            Ready for :class:`cosim.master.Master`.
+        metadata : dict
+            Scenario file, hash, blocks' provenance, seeds, units of the columns.
+
+        Raises
+        ------
+        ScenarioError, FmuError
+            With the file and key of the problem.
+        """
+        hosts: dict[str, BlockHost] = {}
+        try:
+            for spec in self.blocks.values():
+                hosts[spec.name] = self._host(spec)
+            parameters = {
+                name: self._parameters(spec, hosts[name]) for name, spec in self.blocks.items()
+            }
+            connections = self._connections(hosts)
+            self._check_inputs(hosts, parameters, connections)
+            record = self._record(hosts)
+        except Exception:
+            for host in hosts.values():
+                try:
+                    host.terminate()
+                except Exception:  # cleanup of a half-built system must not mask the error
+                    pass
+            raise
+        system = System(
+            blocks=hosts,
+            connections=connections,
+            parameters=parameters,
+            rates={n: s.rate for n, s in self.blocks.items()},
+            record=record,
+        )
+        return system, self._metadata(hosts, parameters, system)
+
+    # ----------------------------------------------------------------- blocks
+    def _host(self, spec: BlockSpec) -> BlockHost:
+        key = f"blocks.{spec.name}"
+        if spec.kind == "fmu":
+            try:
+                return FmuHost(spec.name, Path(spec.source))
+            except FmuError as exc:
+                raise self.error(str(exc), key=f"{key}.fmu") from exc
+        if spec.kind == "model":
+            import models
+
+            known = models.registry()
+            if spec.source not in known:
+                hint = difflib.get_close_matches(spec.source, known, n=1)
+                tip = f" Did you mean '{hint[0]}'?" if hint else ""
+                raise self.error(
+                    f"unknown model '{spec.source}'.{tip} Known models: {', '.join(known)}",
+                    key=f"{key}.model",
+                )
+            return InProcessHost(spec.name, known[spec.source])
+        module_name, _, class_name = spec.source.partition(":")
+        try:
+            cls = getattr(importlib.import_module(module_name), class_name)
+        except (ImportError, AttributeError, ValueError) as exc:
+            raise self.error(
+                f"cannot import '{spec.source}' ({exc}); write it as 'package.module:ClassName'",
+                key=f"{key}.class",
+            ) from exc
+        return InProcessHost(spec.name, cls)
+
+    def _parameters(self, spec: BlockSpec, host: BlockHost) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for pname, raw in spec.parameters.items():
+            key = f"blocks.{spec.name}.parameters.{pname}"
+            scalars = self._expand(host, pname)
+            if not scalars:
+                settable = [
+                    v.name for v in host.variables.values() if v.causality in ("parameter", "input")
+                ]
+                hint = difflib.get_close_matches(pname, _bases(settable), n=1)
+                tip = f" Did you mean '{hint[0]}'?" if hint else ""
+                raise self.error(
+                    f"block '{spec.name}' has no variable '{pname}'.{tip} "
+                    f"Parameters and inputs: {', '.join(_bases(settable))}",
+                    key=key,
+                )
+            var0 = scalars[0]
+            if var0.causality not in ("parameter", "input"):
+                raise self.error(
+                    f"'{spec.name}.{pname}' is an {var0.causality}; only parameters and "
+                    f"inputs can be set",
+                    key=key,
+                )
+            try:
+                value = to_unit(raw, var0.unit) if var0.type == REAL else raw
+            except UnitError as exc:
+                raise self.error(f"{exc} (variable '{spec.name}.{pname}')", key=key) from exc
+            values = value if isinstance(value, list) else [value]
+            if len(values) != len(scalars):
+                raise self.error(
+                    f"expected {len(scalars)} value(s) for '{spec.name}.{pname}', "
+                    f"got {len(values)}",
+                    key=key,
+                )
+            for var, v in zip(scalars, values, strict=True):
+                out[var.name] = self._typed(v, var, key)
+        return out
+
+    def _typed(self, value: Any, var: Variable, key: str) -> Any:
+        if var.type == REAL:
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise self.error(f"expected a number for '{var.name}', got {value!r}", key=key)
+            return float(value)
+        if var.type == "Integer":
+            if isinstance(value, float) and value.is_integer():
+                value = int(value)
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise self.error(f"expected an integer for '{var.name}', got {value!r}", key=key)
+            return value
+        if var.type == "Boolean":
+            if not isinstance(value, bool):
+                raise self.error(f"expected true or false for '{var.name}', got {value!r}", key=key)
+            return value
+        return str(value)
+
+    @staticmethod
+    def _expand(host: BlockHost, name: str) -> list[Variable]:
+        if name in host.variables:
+            return [host.variables[name]]
+        elements = []
+        i = 1
+        while f"{name}[{i}]" in host.variables:
+            elements.append(host.variables[f"{name}[{i}]"])
+            i += 1
+        return elements
+
+    # ------------------------------------------------------------ connections
+    def _connections(self, hosts: dict[str, BlockHost]) -> list[Connection]:
+        out: list[Connection] = []
+        seen: dict[str, str] = {}
+        for i, text in enumerate(self.connections):
+            key = f"connections[{i}]"
+            m = _LINK.match(text) if isinstance(text, str) else None
+            if not m:
+                raise self.error(f"expected 'block.output -> block.input', got {text!r}", key=key)
+            sb, sv, db, dv = m.groups()
+            src = self._endpoint(hosts, sb, sv, "output", key, text)
+            dst = self._endpoint(hosts, db, dv, "input", key, text)
+            if len(src) != len(dst):
+                raise self.error(
+                    f"'{text}': '{sb}.{sv}' has {len(src)} element(s) but '{db}.{dv}' has "
+                    f"{len(dst)}; connect elements explicitly, e.g. '{sb}.{sv}[1] -> {db}.{dv}'",
+                    key=key,
+                )
+            for a, b in zip(src, dst, strict=True):
+                try:
+                    factor = conversion_factor(a.unit, b.unit)
+                except UnitError as exc:
+                    raise self.error(
+                        f"'{text}': incompatible units: '{sb}.{a.name}' is in '{a.unit}' but "
+                        f"'{db}.{b.name}' expects '{b.unit}'",
+                        key=key,
+                    ) from exc
+                sink = f"{db}.{b.name}"
+                if sink in seen:
+                    raise self.error(
+                        f"input '{sink}' is connected twice ({seen[sink]} and {text!r}); "
+                        f"an input takes one source",
+                        key=key,
+                    )
+                seen[sink] = repr(text)
+                out.append(Connection(sb, a.name, db, b.name, factor))
+        return out
+
+    def _endpoint(
+        self, hosts: dict[str, BlockHost], block: str, var: str, causality: str, key: str, text: str
+    ) -> list[Variable]:
+        if block not in hosts:
+            hint = difflib.get_close_matches(block, hosts, n=1)
+            tip = f" Did you mean '{hint[0]}'?" if hint else ""
+            raise self.error(
+                f"'{text}': unknown block '{block}'.{tip} Blocks: {', '.join(hosts)}", key=key
+            )
+        host = hosts[block]
+        scalars = self._expand(host, var)
+        if not scalars:
+            names = _bases([v.name for v in host.by_causality(causality)])
+            hint = difflib.get_close_matches(var, names, n=1)
+            tip = f" Did you mean '{hint[0]}'?" if hint else ""
+            raise self.error(
+                f"'{text}': block '{block}' has no variable '{var}'.{tip} "
+                f"Its {causality}s: {', '.join(names) or 'none'}",
+                key=key,
+            )
+        for v in scalars:
+            if v.causality != causality:
+                side = "left" if causality == "output" else "right"
+                raise self.error(
+                    f"'{text}': '{block}.{v.name}' is an {v.causality}, but the {side} side of "
+                    f"a connection must be an {causality}",
+                    key=key,
+                )
+            if v.type != REAL:
+                raise self.error(
+                    f"'{text}': '{block}.{v.name}' is {v.type}; connections carry Real values",
+                    key=key,
+                )
+        return scalars
+
+    def _check_inputs(
+        self,
+        hosts: dict[str, BlockHost],
+        parameters: dict[str, dict[str, Any]],
+        connections: list[Connection],
+    ) -> None:
+        wired = {(c.dst_block, c.dst_var) for c in connections}
+        for name, host in hosts.items():
+            for v in host.by_causality("input"):
+                if (name, v.name) in wired or v.name in parameters[name]:
+                    continue
+                if v.start is None:
+                    raise self.error(
+                        f"input '{name}.{v.name}' is not connected and has no start value; "
+                        f"connect it or give it a value under blocks.{name}.parameters",
+                        key=f"blocks.{name}",
+                    )
+
+    def _record(self, hosts: dict[str, BlockHost]) -> list[tuple[str, str]] | None:
+        if self.outputs is None:
+            return None
+        out: list[tuple[str, str]] = []
+        for i, item in enumerate(self.outputs):
+            key = f"output.variables[{i}]"
+            block, _, var = str(item).partition(".")
+            if block not in hosts:
+                raise self.error(
+                    f"unknown block '{block}' in {item!r}; blocks: {', '.join(hosts)}", key=key
+                )
+            host = hosts[block]
+            if not var:
+                out += [(block, v.name) for v in host.by_causality("output") if v.type == REAL]
+                continue
+            scalars = self._expand(host, var)
+            if not scalars or any(v.causality != "output" or v.type != REAL for v in scalars):
+                names = _bases([v.name for v in host.by_causality("output")])
+                raise self.error(
+                    f"'{item}' is not a Real output of block '{block}'; outputs: "
+                    f"{', '.join(names)}",
+                    key=key,
+                )
+            out += [(block, v.name) for v in scalars]
+        return out
+
+    def _metadata(
+        self, hosts: dict[str, BlockHost], parameters: dict[str, dict[str, Any]], system: System
+    ) -> dict[str, Any]:
+        from cosim import provenance
+
+        record = system.record or [
+            (b, v.name)
+            for b, h in hosts.items()
+            for v in h.by_causality("output")
+            if v.type == REAL
+        ]
+        units = {"time": "s"}
+        units.update({f"{b}.{v}": hosts[b].variables[v].unit for b, v in record})
+        return {
+            "scenario": {"file": str(self.path), "name": self.name, "sha256": self.sha256},
+            "blocks": {
+                name: {
+                    "kind": h.kind,
+                    "source": h.source,
+                    "guid": h.guid,
+                    "sha256": h.sha256,
+                    "fmi_version": h.fmi_version,
+                    "rate": self.blocks[name].rate,
+                }
+                for name, h in hosts.items()
+            },
+            "parameters": parameters,
+            "seeds": {name: p["seed"] for name, p in parameters.items() if "seed" in p},
+            "units": units,
+            "software": provenance.versions(),
+        }
+
+
+def _bases(names: list[str]) -> list[str]:
+    """``['x', 'v[1]', 'v[2]']`` -> ``['x', 'v']`` (order kept)."""
+    seen: dict[str, None] = {}
+    for n in names:
+        seen.setdefault(n.split("[", 1)[0], None)
+    return list(seen)
+
+
+def _check_keys(table: dict[str, Any], allowed: set[str], where: str, file: str) -> None:
+    for k in table:
+        if k not in allowed:
+            hint = difflib.get_close_matches(k, allowed, n=1)
+            tip = f" Did you mean '{hint[0]}'?" if hint else ""
+            if k in TOP_KEYS and where != "the top level":
+                tip = (
+                    f" '{k}' is a top-level key: write it before the first [table] header "
+                    f"(TOML puts a key under the table header above it)."
+                )
+            raise ScenarioError(
+                f"unknown key '{k}'.{tip} Allowed in {where}: {', '.join(sorted(allowed))}",
+                file=file,
+                key=f"{where}.{k}" if where != "the top level" else k,
+            )
+
+
+def _seconds(value: Any, file: str, key: str) -> float:
+    try:
+        v = to_unit(value, "s")
+    except UnitError as exc:
+        raise ScenarioError(str(exc), file=file, key=key) from exc
+    if isinstance(v, (list, bool)):
+        raise ScenarioError(f"expected a time such as '10 ms', got {value!r}", file=file, key=key)
+    return float(v)
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and check a scenario file (blocks are not instantiated yet).
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.toml`` file.
+
+    Returns
+    -------
+    Scenario
+
+    Raises
+    ------
+    ScenarioError
+        Missing file, malformed TOML, unknown or missing keys, bad values.
+    """
+    path = Path(path)
+    f = str(path)
+    if not path.is_file():
+        raise ScenarioError("file not found; give the path of a scenario .toml file", file=f)
+    data = path.read_bytes()
+    try:
+        doc = tomllib.loads(data.decode("utf-8"))
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        dup = _DUPLICATE.search(str(exc))
+        if dup:
+            raise ScenarioError(
+                f"block '{dup.group(1)}' is defined twice ({dup.group(2)}); block names must "
+                f"be unique: rename one of them",
+                file=f,
+                key=f"blocks.{dup.group(1)}",
+            ) from exc
+        raise ScenarioError(f"not valid TOML: {exc}", file=f) from exc
+    _check_keys(doc, TOP_KEYS, "the top level", f)
+    head = doc.get("scenario", {})
+    master = doc.get("master")
+    if not isinstance(master, dict):
+        raise ScenarioError(
+            "missing [master] table; add e.g. [master] step = '10 ms', stop = '60 s'",
+            file=f,
+            key="master",
+        )
+    _check_keys(master, MASTER_KEYS, "master", f)
+    for req in ("step", "stop"):
+        if req not in master:
+            raise ScenarioError(
+                f"missing master.{req} (a time, e.g. '10 ms')", file=f, key=f"master.{req}"
+            )
+    coupling = str(master.get("coupling", GAUSS_SEIDEL)).lower().replace("_", "-")
+    if coupling not in (GAUSS_SEIDEL, JACOBI):
+        raise ScenarioError(
+            f"expected 'gauss-seidel' or 'jacobi', got {master.get('coupling')!r}",
+            file=f,
+            key="master.coupling",
+        )
+    output = doc.get("output", {})
+    _check_keys(output, OUTPUT_KEYS, "output", f)
+    every = output.get("every", 1)
+    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+        raise ScenarioError(
+            f"expected a positive integer, got {every!r}", file=f, key="output.every"
+        )
+    settings = MasterSettings(
+        step=_seconds(master["step"], f, "master.step"),
+        stop=_seconds(master["stop"], f, "master.stop"),
+        start=_seconds(master.get("start", 0.0), f, "master.start"),
+        coupling=coupling,
+        record_every=every,
+    )
+    blocks_raw = doc.get("blocks")
+    if not isinstance(blocks_raw, dict) or not blocks_raw:
+        raise ScenarioError(
+            "no blocks; add at least one [blocks.<name>] table with model = '...' or fmu = '...'",
+            file=f,
+            key="blocks",
+        )
+    blocks: dict[str, BlockSpec] = {}
+    for name, table in blocks_raw.items():
+        key = f"blocks.{name}"
+        if not _NAME.match(name):
+            raise ScenarioError(
+                f"block name '{name}' must be a Python-style identifier", file=f, key=key
+            )
+        if not isinstance(table, dict):
+            raise ScenarioError(f"expected a table, got {table!r}", file=f, key=key)
+        _check_keys(table, BLOCK_KEYS, key, f)
+        kinds = [k for k in ("model", "fmu", "class") if k in table]
+        if len(kinds) != 1:
+            raise ScenarioError(
+                "give exactly one of model = 'Name', fmu = 'path.fmu' or class = 'module:Class'",
+                file=f,
+                key=key,
+            )
+        kind = kinds[0]
+        source = str(table[kind])
+        if kind == "fmu":
+            source = str((path.parent / source).resolve())
+        rate = table.get("rate", 1)
+        if isinstance(rate, bool) or not isinstance(rate, int) or rate < 1:
+            raise ScenarioError(
+                f"expected a positive integer, got {rate!r}", file=f, key=f"{key}.rate"
+            )
+        params = table.get("parameters", {})
+        if not isinstance(params, dict):
+            raise ScenarioError(
+                f"expected a table, got {params!r}", file=f, key=f"{key}.parameters"
+            )
+        blocks[name] = BlockSpec(name, kind, source, rate, dict(params))
+    connections = doc.get("connections", [])
+    if not isinstance(connections, list):
+        raise ScenarioError(
+            "expected a list of strings like 'a.x -> b.u'", file=f, key="connections"
+        )
+    outputs = output.get("variables")
+    if outputs is not None and not isinstance(outputs, list):
+        raise ScenarioError(
+            "expected a list of 'block' or 'block.variable'", file=f, key="output.variables"
+        )
+    return Scenario(
+        path=path,
+        sha256=hashlib.sha256(data).hexdigest(),
+        name=str(head.get("name", path.stem)),
+        settings=settings,
+        blocks=blocks,
+        connections=connections,
+        outputs=outputs,
+        raw=doc,
+    )

@@ -1,0 +1,62 @@
+"""Shared fixtures: FMUs built fresh for the session, and a CLI runner."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+TESTS = Path(__file__).resolve().parent
+ROOT = TESTS.parent
+
+
+@pytest.fixture(scope="session")
+def fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """Every model of ``models/`` built into FMUs by the same code as ``make fmus``."""
+    from cosim.packaging import build_all
+
+    out = tmp_path_factory.mktemp("fmus")
+    build_all(out)
+    return out
+
+
+@pytest.fixture(scope="session")
+def faulty_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The ``testblocks.Faulty`` block as an FMU (fails on purpose)."""
+    from testblocks import Faulty
+
+    from cosim.packaging import build_fmu
+
+    out = tmp_path_factory.mktemp("faulty")
+    return build_fmu(Faulty, out, extra_files=(TESTS / "testblocks.py",))
+
+
+@dataclass
+class CliResult:
+    code: int
+    out: str
+    err: str
+
+
+@pytest.fixture
+def cli(tmp_path: Path):
+    """Run ``ins-cosim`` in a subprocess, as a user would (tests/ on the path for fixtures)."""
+
+    def run(*args: str) -> CliResult:
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join([str(TESTS), env.get("PYTHONPATH", "")])
+        proc = subprocess.run(
+            [sys.executable, "-m", "cosim.cli", *map(str, args)],
+            capture_output=True,
+            text=True,
+            cwd=tmp_path,
+            env=env,
+            timeout=300,
+        )
+        return CliResult(proc.returncode, proc.stdout, proc.stderr)
+
+    return run

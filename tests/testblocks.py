@@ -1,0 +1,83 @@
+"""Small blocks with analytic behaviour, for tests of the master and of error handling."""
+
+from __future__ import annotations
+
+import math
+
+from models.block import Block, input_, output, parameter
+
+
+class Ramp(Block):
+    """Outputs the time at the end of its last step: y = t + h (t0 after initialisation)."""
+
+    variables = (output("y", 0.0, "s"),)
+
+    def initialize(self) -> None:
+        self.y = self.start_time
+
+    def step(self, t: float, h: float) -> None:
+        self.y = t + h
+
+
+class Pass(Block):
+    """Direct feedthrough with an offset: y = u + offset, valid at the end of the step."""
+
+    variables = (
+        parameter("offset", 0.0, "s"),
+        input_("u", 0.0, "s"),
+        output("y", 0.0, "s"),
+    )
+
+    def initialize(self) -> None:
+        self.y = self.u + self.offset
+
+    def step(self, t: float, h: float) -> None:
+        self.y = self.u + self.offset
+
+
+class Clock(Block):
+    """Reports the t and h it was called with: t_end = t + h, plus the count of steps."""
+
+    variables = (output("t_end", 0.0, "s"), output("count", 0.0))
+
+    def initialize(self) -> None:
+        self.t_end = self.start_time
+
+    def step(self, t: float, h: float) -> None:
+        self.t_end = t + h
+        self.count += 1.0
+
+
+class Faulty(Block):
+    """Fails on purpose from ``fail_time`` on: mode 1 outputs NaN, mode 2 reports failure."""
+
+    variables = (
+        parameter("fail_time", 0.5, "s"),
+        parameter("mode", 1),
+        output("y", 0.0),
+    )
+
+    def step(self, t: float, h: float) -> None:
+        self.y = t + h
+        if t + h > self.fail_time and self.mode == 1:
+            self.y = math.nan
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        self.step(current_time, step_size)
+        return not (self.mode == 2 and current_time + step_size > self.fail_time)
+
+
+class Vec(Block):
+    """A 3-vector source and a 3-vector sink in one block: y = u * gain."""
+
+    variables = (
+        parameter("gain", 1.0),
+        input_("u", (0.0, 0.0, 0.0), "rad"),
+        output("y", (1.0, 2.0, 3.0), "rad"),
+    )
+
+    def initialize(self) -> None:
+        self.y = self.gain * self.u
+
+    def step(self, t: float, h: float) -> None:
+        self.y = self.gain * self.u
