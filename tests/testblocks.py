@@ -81,3 +81,12 @@ class Vec(Block):
 
     def step(self, t: float, h: float) -> None:
         self.y = self.gain * self.u
+
+
+class DegSource(Block):
+    """A vendor-style source that speaks degrees: y = 90 deg."""
+
+    variables = (output("y", 90.0, "deg"),)
+
+    def step(self, t: float, h: float) -> None:
+        self.y = 90.0
