@@ -16,8 +16,10 @@ The coupling rule (README, "The coupling rule", has the diagram):
   the run warns with the loop's blocks and the delayed connection.
 - **Jacobi**: every block reads its inputs from the values all sources held at ``t_n``,
   before anyone stepped (one macro step of delay on every connection; order irrelevant).
-- Initialisation runs in the same order: each block is initialised with inputs taken from
-  the t0 outputs of its already-initialised sources (start values for delayed ones).
+- Initialisation follows the same rule. Gauss-Seidel: in stepping order, each block is
+  initialised with inputs taken from the t0 outputs of its already-initialised sources
+  (start values for delayed connections). Jacobi: every block is initialised with its
+  sources' start values (the snapshot before anyone initialised), as libcosim does.
 - A block error or a non-finite output stops the run with a :class:`SimulationError`
   naming block, variable or call and time; the result recorded so far is attached.
 """
@@ -373,11 +375,12 @@ class Master:
             values[idx] = out
 
         # -- initialisation, in stepping order ----------------------------------
+        before_init = values.copy()
         for name in self.order:
             host = sys_.blocks[name]
             try:
                 host.setup(t0, sys_.parameters.get(name, {}))
-                transfer(name, values)
+                transfer(name, before_init if jacobi else values)
                 host.exit_init()
             except BlockCallError as exc:
                 raise fail(exc, name, t0, exc.call) from exc
