@@ -406,6 +406,15 @@ class Master:
                 row += 1
         return result("completed")
 
+    def reset(self) -> None:
+        """Reset every block (FMI reset) so that :meth:`run` can run again.
+
+        Campaigns instantiate the blocks once per worker and call ``reset()`` between
+        runs; change ``system.parameters`` (e.g. seeds) before the next :meth:`run`.
+        """
+        for host in self.system.blocks.values():
+            host.reset()
+
     def terminate(self) -> None:
         """Terminate every block (frees FMU instances)."""
         for host in self.system.blocks.values():

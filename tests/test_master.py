@@ -150,3 +150,26 @@ def test_fault_stops_run_with_block_variable_time_and_keeps_results(
     # rows t = 0 .. 0.10 were completed and are kept
     assert len(rec.data) == 11
     np.testing.assert_allclose(rec.data["ramp.y"], np.arange(11) * H, atol=1e-15)
+
+
+def test_reset_then_run_again_reproduces_the_run_and_takes_new_seeds(fmu_dir) -> None:
+    from cosim.blocks import FmuHost
+    from models.first_order_sensor import FirstOrderSensor
+
+    blocks = {
+        "gm": FmuHost("gm", fmu_dir / "GaussMarkov2.fmu"),
+        "s": InProcessHost("s", FirstOrderSensor),
+    }
+    params = {"gm": {"seed": 1}, "s": {"seed": 2, "noise_density": 1e-4}}
+    system = System(blocks, [Connection("gm", "x", "s", "u")], parameters=params)
+    master = Master(system, MasterSettings(H, 1.0))
+    first = master.run().data
+    master.reset()
+    second = master.run().data
+    master.reset()
+    params["gm"]["seed"] = 3
+    third = master.run().data
+    master.terminate()
+    for name in first.dtype.names:
+        np.testing.assert_array_equal(first[name], second[name])
+    assert not np.array_equal(first["gm.x"], third["gm.x"])
