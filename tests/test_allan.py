@@ -1,0 +1,91 @@
+"""Overlapping Allan deviation (cosim.allan) against the theory of its noise terms.
+
+Tolerances: the estimate's relative standard error is ``1 / sqrt(2 edf)`` with the
+equivalent degrees of freedom of NIST SP 1065 (``cosim.allan.relative_error``); each
+check allows four of those standard errors (a fixed seed makes the outcome
+deterministic; four sigma keeps it robust to a change of generator stream).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from cosim.allan import (
+    allan_deviation,
+    allan_variance,
+    cluster_sizes,
+    edf_overlapping,
+    relative_error,
+)
+
+DT = 0.01  # s
+N_SAMPLES = 1_000_000
+
+
+def test_white_rate_noise_follows_n_over_sqrt_tau() -> None:
+    # Theory: white rate noise of density N sampled as means over dt has variance
+    # N^2 / dt per sample and avar(tau) = N^2 / tau exactly.
+    density = 3.0e-6  # rad/sqrt(s)
+    rng = np.random.default_rng(11)
+    y = density / np.sqrt(DT) * rng.standard_normal(N_SAMPLES)
+    m = np.array([1, 10, 100, 1000])
+    tau, adev = allan_deviation(y, DT, m)
+    expected = density / np.sqrt(tau)
+    for mi, a, e in zip(m, adev, expected, strict=True):
+        tol = 4.0 * relative_error(N_SAMPLES, int(mi), "white")
+        assert abs(a / e - 1.0) < tol, (mi, a / e - 1.0, tol)
+
+
+def test_rate_random_walk_follows_k_sqrt_tau_over_3() -> None:
+    # Theory: for y_k = y_(k-1) + K sqrt(dt) w_k (sampled random walk) the exact
+    # discrete Allan variance is K^2 (tau / 3 + dt^2 / (6 tau)) (cosim.allan docstring).
+    k_rrw = 2.0e-7  # rad/s/sqrt(s)
+    rng = np.random.default_rng(12)
+    y = np.cumsum(k_rrw * np.sqrt(DT) * rng.standard_normal(N_SAMPLES))
+    m = np.array([1, 10, 100, 1000])
+    tau, avar = allan_variance(y, DT, m)
+    expected = k_rrw**2 * (tau / 3.0 + DT**2 / (6.0 * tau))
+    for mi, a, e in zip(m, np.sqrt(avar), np.sqrt(expected), strict=True):
+        tol = 4.0 * relative_error(N_SAMPLES, int(mi), "rrw")
+        assert abs(a / e - 1.0) < tol, (mi, a / e - 1.0, tol)
+    # The slope on the log-log plot is +1/2 at long tau.
+    slope = np.diff(np.log(np.sqrt(avar[1:]))) / np.diff(np.log(tau[1:]))
+    assert np.all(np.abs(slope - 0.5) < 0.1)
+
+
+def test_increments_rates_and_axes_are_equivalent() -> None:
+    rng = np.random.default_rng(13)
+    y = rng.standard_normal((20_000, 3)) + np.array([5.0, -2.0, 9.81])  # offsets are ignored
+    m = cluster_sizes(y.shape[0])
+    tau_r, adev_r = allan_deviation(y, DT, m)
+    tau_i, adev_i = allan_deviation(y * DT, DT, m, increments=True)
+    np.testing.assert_array_equal(tau_r, tau_i)
+    np.testing.assert_allclose(adev_i, adev_r, rtol=1e-10)
+    for axis in range(3):
+        _, single = allan_deviation(y[:, axis] - y[:, axis].mean(), DT, m)
+        np.testing.assert_allclose(single, adev_r[:, axis], rtol=1e-10)
+
+
+def test_edf_matches_the_spread_of_repeated_estimates() -> None:
+    # 400 independent white-noise records; the spread of their ADEV at m = 10 must
+    # match 1 / sqrt(2 edf). The spread of a std estimated from 400 values has a
+    # relative error of about 1 / sqrt(2 * 399) = 3.5 %, so 15 % is > 4 sigma.
+    n, m = 5_000, 10
+    rng = np.random.default_rng(14)
+    y = rng.standard_normal((n, 400))
+    _, adev = allan_deviation(y, 1.0, m)
+    spread = np.std(adev[0]) / np.mean(adev[0])
+    assert abs(spread / relative_error(n, m, "white") - 1.0) < 0.15
+
+
+def test_cluster_sizes_and_argument_checks() -> None:
+    m = cluster_sizes(1000)
+    assert m[0] == 1 and m[-1] == 499 and np.all(np.diff(m) > 0)
+    assert edf_overlapping(1000, 1, "white") > edf_overlapping(1000, 100, "white")
+    with pytest.raises(ValueError):
+        allan_variance(np.zeros(10), DT, 6)
+    with pytest.raises(ValueError):
+        allan_variance(np.zeros(10), -1.0, 1)
+    with pytest.raises(ValueError):
+        edf_overlapping(10, 1, "flicker")
