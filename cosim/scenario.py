@@ -179,8 +179,9 @@ class Scenario:
                 raise self.error(str(exc), key=f"{key}.fmu") from exc
         if spec.kind == "model":
             import models
+            from cosim import alignment
 
-            known = models.registry()
+            known = {**models.registry(), **alignment.registry()}
             if spec.source not in known:
                 hint = difflib.get_close_matches(spec.source, known, n=1)
                 tip = f" Did you mean '{hint[0]}'?" if hint else ""

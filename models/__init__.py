@@ -15,6 +15,32 @@ from models.block import Block
 _NOT_BLOCKS = {"block", "conventions", "earth"}
 
 
+def find_blocks(package: str, path: list[str]) -> dict[str, type[Block]]:
+    """Concrete :class:`Block` subclasses defined in the modules of a package.
+
+    Parameters
+    ----------
+    package : str
+        Dotted package name.
+    path : list of str
+        The package's ``__path__``.
+
+    Returns
+    -------
+    dict
+        ``{class name: class}``, sorted by name.
+    """
+    found: dict[str, type[Block]] = {}
+    for info in pkgutil.iter_modules(path):
+        if info.name.startswith("_") or info.name in _NOT_BLOCKS:
+            continue
+        module = importlib.import_module(f"{package}.{info.name}")
+        for name, obj in inspect.getmembers(module, inspect.isclass):
+            if issubclass(obj, Block) and obj is not Block and obj.__module__ == module.__name__:
+                found[name] = obj
+    return dict(sorted(found.items()))
+
+
 def registry() -> dict[str, type[Block]]:
     """All block classes in ``models/``, by class name.
 
@@ -23,12 +49,4 @@ def registry() -> dict[str, type[Block]]:
     dict
         ``{class name: class}``, sorted by name.
     """
-    found: dict[str, type[Block]] = {}
-    for info in pkgutil.iter_modules(__path__):
-        if info.name.startswith("_") or info.name in _NOT_BLOCKS:
-            continue
-        module = importlib.import_module(f"{__name__}.{info.name}")
-        for name, obj in inspect.getmembers(module, inspect.isclass):
-            if issubclass(obj, Block) and obj is not Block and obj.__module__ == module.__name__:
-                found[name] = obj
-    return dict(sorted(found.items()))
+    return find_blocks(__name__, __path__)
