@@ -5,7 +5,6 @@ Parametrised over the model registry, so a new block is covered as soon as it ex
 
 from __future__ import annotations
 
-import math
 import os
 import subprocess
 import sys
@@ -17,7 +16,9 @@ from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
 import models
-from cosim.blocks import REAL, BlockHost, FmuHost, InProcessHost
+from cosim.blocks import REAL, FmuHost, InProcessHost
+from cosim.references import MAX_STEPS, REFERENCE_DIR, drive, reference_run
+from cosim.results import RunResult
 
 BLOCKS = models.registry()
 NAMES = sorted(BLOCKS)
@@ -73,36 +74,28 @@ def test_fmpy_command_line_simulates_an_fmu_from_any_folder(fmu_dir: Path, tmp_p
     assert out.read_text().splitlines()[0] == '"time","x","x_dot"'
 
 
-def _drive(host: BlockHost, n_steps: int, h: float) -> np.ndarray:
-    """Run one block with its default parameters (seed 1234) and deterministic inputs."""
-    params = {"seed": 1234} if "seed" in host.variables else {}
-    inputs = [v for v in host.by_causality("input") if v.type == REAL]
-    outputs = [v for v in host.by_causality("output") if v.type == REAL]
-    host.setup(0.0, params)
-    host.exit_init()
-    rows = [host.get_real([v.vr for v in outputs])]
-    for n in range(n_steps):
-        t = n * h
-        values = [
-            (v.start or 0.0) + 1e-3 * math.sin(0.7 * (i + 1) * t + i) for i, v in enumerate(inputs)
-        ]
-        if inputs:
-            host.set_real([v.vr for v in inputs], values)
-        host.do_step(t, h)
-        rows.append(host.get_real([v.vr for v in outputs]))
-    host.terminate()
-    return np.array(rows)
-
-
 @pytest.mark.parametrize("name", NAMES)
 def test_in_process_equals_fmu(fmu_dir: Path, name: str) -> None:
     cls = BLOCKS[name]
     h = cls.default_step
-    n_steps = min(200, round(cls.default_stop / h))
-    a = _drive(InProcessHost(name, cls), n_steps, h)
-    b = _drive(FmuHost(name, fmu_dir / f"{name}.fmu"), n_steps, h)
-    assert a.shape == b.shape and a.shape[0] == n_steps + 1
-    assert np.max(np.abs(a - b), initial=0.0) <= 1e-12
+    n_steps = min(MAX_STEPS, round(cls.default_stop / h))
+    a = drive(InProcessHost(name, cls), n_steps, h)
+    b = drive(FmuHost(name, fmu_dir / f"{name}.fmu"), n_steps, h)
+    assert a.dtype == b.dtype and len(a) == n_steps + 1
+    for field in a.dtype.names:
+        assert np.max(np.abs(a[field] - b[field])) <= 1e-12, field
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_matches_its_reference_result(name: str) -> None:
+    """The model's output equals models/reference/<name>.csv (python -m cosim.references)."""
+    ref_file = REFERENCE_DIR / f"{name}.csv"
+    assert ref_file.exists(), f"no reference for {name}: run `python -m cosim.references`"
+    ref = RunResult.load(ref_file).data
+    now = reference_run(BLOCKS[name])
+    assert ref.dtype.names == now.dtype.names
+    for field in ref.dtype.names:
+        np.testing.assert_allclose(now[field], ref[field], rtol=1e-12, atol=1e-300, err_msg=field)
 
 
 def test_reset_reproduces_the_first_run(fmu_dir: Path) -> None:
@@ -123,3 +116,13 @@ def test_reset_reproduces_the_first_run(fmu_dir: Path) -> None:
     second = once()
     host.terminate()
     assert first == second
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_every_model_has_a_readme_with_its_variables(name: str) -> None:
+    doc = REFERENCE_DIR.parent / "docs" / f"{name}.md"
+    assert doc.exists(), f"models/docs/{name}.md is missing"
+    text = doc.read_text()
+    for var in BLOCKS[name].variables:
+        assert var.name in text, f"{name}.md does not mention {var.name}"
+

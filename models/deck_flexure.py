@@ -1,0 +1,167 @@
+"""Deck flexure: second-order Markov angle per axis (seed 001, eq. 1), exact discretisation.
+
+Equations (per axis ``i = x, y, z`` of the master body frame)::
+
+    theta_i'' + 2 beta_i theta_i' + beta_i^2 theta_i = eta_i,     eta_i white, PSD q_i
+    beta_i = 2.146 / tau_i,       q_i = 4 beta_i^3 sigma_i^2
+
+so that ``theta_i`` is stationary with std ``sigma_i`` (and ``theta_i'`` with std
+``beta_i sigma_i``); the initial state is drawn from that distribution. The PSD of
+``theta_i`` is ``q_i |H(j w)|^2`` with ``H(s) = 1 / (s^2 + 2 beta_i s + beta_i^2)``.
+
+Exact discretisation over any step ``h``: the state ``[I, theta, theta']`` with
+``I' = theta`` (``I`` restarted at 0 at each step, so ``I(h) = integral of theta``
+over the step) is propagated with ``Phi = expm(A h)`` and the Van Loan noise
+covariance ``Qd = integral_0^h expm(A s) G q G^T expm(A s)^T ds``, computed on
+the time-scaled state ``[I / h^2, theta / h, theta']`` (all entries keep full
+relative precision for small steps) and, for ``beta h > 1``, on ``h / 2^k`` followed
+by ``k`` exact doublings ``Qd(2s) = Qd(s) + Phi(s) Qd(s) Phi(s)^T`` (Van Loan's
+``expm(-A h)`` would overflow): valid for any step.
+
+The white noise over a step. ``eta`` has no value at an instant; what the
+physics needs is its integral, and that follows exactly from the sampled state::
+
+    integral_t^(t+h) eta dt = dtheta_dot + 2 beta dtheta + beta^2 I
+
+The block outputs the step mean ``eta = (that integral) / h`` (variance exactly
+``q / h``: a sampled white noise). The flexure acceleration at the step end is
+represented as ``theta_ddot = -2 beta theta' - beta^2 theta + eta``
+(instantaneous damping terms, step-mean noise). The lever-arm term ``R_0 eta``
+of seed 001 eq. (11) thus appears as ``R_0 theta_ddot`` in the slave's specific
+force at the step end, and its integral over the step is exactly
+``R_0 (theta'(t+h) - theta'(t)) = R_0 dtheta_dot_flex`` (see :mod:`models.lever_arm`).
+
+Outputs at the step end: ``theta`` [rad], ``theta_dot`` [rad/s], ``theta_ddot``
+[rad/s2], ``eta`` [rad/s2] (step mean); increments over the step:
+``dtheta_flex = theta(t+h) - theta(t)`` [rad] (the integral of ``theta_dot``) and
+``dtheta_dot_flex = theta_dot(t+h) - theta_dot(t)`` [rad/s] (the integral of
+``theta_ddot``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from scipy.linalg import expm
+
+from models.block import Block, output, parameter
+
+_ARCMIN = math.pi / 180.0 / 60.0
+
+
+def discretize_flexure(beta: float, q: float, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Exact transition and noise covariance of ``[I, theta, theta']`` over a step.
+
+    Parameters
+    ----------
+    beta : float
+        Damping parameter [1/s].
+    q : float
+        Two-sided PSD of the driving white noise [rad^2/s^3].
+    h : float
+        Step [s], > 0.
+
+    Returns
+    -------
+    phi : ndarray, shape (3, 3)
+        Transition of ``[I, theta, theta']`` (``I`` = integral of theta since the step start).
+    qd : ndarray, shape (3, 3)
+        Covariance of the accumulated noise.
+    """
+    # Van Loan on a sub-step h0 = h / 2^k with beta h0 <= 1 (the Van Loan matrix holds
+    # expm(-A h0), which overflows for large beta h), then doubling:
+    # Phi(2s) = Phi(s)^2,  Qd(2s) = Qd(s) + Phi(s) Qd(s) Phi(s)^T.
+    k = max(0, math.ceil(math.log2(beta * h))) if beta * h > 1.0 else 0
+    h0 = h / 2.0**k
+    # Scaled state z = S x, S = diag(1/h0^2, 1/h0, 1), time in units of h0:
+    # dz/du = As z + Gs w with As = h0 S A S^-1.
+    a_s = np.array([[0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [0.0, -((beta * h0) ** 2), -2.0 * beta * h0]])
+    m = np.zeros((6, 6))
+    m[:3, :3] = -a_s
+    m[2, 5] = q * h0  # Gs q Gs^T with Gs = [0, 0, 1] and d(time) = h0 du
+    m[3:, 3:] = a_s.T
+    e = expm(m)
+    phi_s = e[3:, 3:].T
+    q_s = phi_s @ e[:3, 3:]
+    q_s = 0.5 * (q_s + q_s.T)
+    scale = np.array([h0 * h0, h0, 1.0])
+    phi = phi_s * scale[:, None] / scale[None, :]
+    qd = q_s * scale[:, None] * scale[None, :]
+    for _ in range(k):
+        qd = qd + phi @ qd @ phi.T
+        phi = phi @ phi
+    return phi, 0.5 * (qd + qd.T)
+
+
+def _noise_factor(qd: np.ndarray) -> np.ndarray:
+    """``L`` with ``L L^T = qd``: Cholesky of the correlation matrix, rescaled."""
+    d = np.sqrt(np.clip(np.diag(qd), 0.0, None))
+    if not np.all(d > 0.0):
+        return np.zeros_like(qd)
+    corr = qd / d[:, None] / d[None, :]
+    vals, vecs = np.linalg.eigh(corr)
+    root = vecs * np.sqrt(np.clip(vals, 0.0, None))
+    return d[:, None] * root
+
+
+class DeckFlexure(Block):
+    """Deck flexure angles: second-order Gauss-Markov per axis with exact discretisation."""
+
+    variables = (
+        parameter(
+            "tau", (600.0, 600.0, 600.0), "s", "correlation time per axis (beta = 2.146/tau)"
+        ),
+        parameter("sigma", (2.0 * _ARCMIN,) * 3, "rad", "stationary std per axis"),
+        parameter("seed", 0, description="random seed"),
+        output("theta", (0.0, 0.0, 0.0), "rad", "flexure angle, master body axes"),
+        output("theta_dot", (0.0, 0.0, 0.0), "rad/s", "flexure rate"),
+        output("theta_ddot", (0.0, 0.0, 0.0), "rad/s2", "-2 beta theta' - beta^2 theta + eta"),
+        output("eta", (0.0, 0.0, 0.0), "rad/s2", "driving white noise, mean over the step"),
+        output("dtheta_flex", (0.0, 0.0, 0.0), "rad", "theta(t+h) - theta(t)"),
+        output("dtheta_dot_flex", (0.0, 0.0, 0.0), "rad/s", "theta_dot(t+h) - theta_dot(t)"),
+    )
+    default_stop = 2.0
+
+    def initialize(self) -> None:
+        tau = np.asarray(self.tau, dtype=float)
+        if np.any(tau <= 0.0):
+            raise ValueError("DeckFlexure.tau must be > 0 on every axis")
+        self._rng = np.random.default_rng(self.seed)
+        self._beta = 2.146 / tau
+        sig = np.asarray(self.sigma, dtype=float)
+        self._q = 4.0 * self._beta**3 * sig**2
+        self._cache: tuple[float, np.ndarray, np.ndarray] | None = None
+        z = self._rng.standard_normal((2, 3))
+        self.theta = sig * z[0]
+        self.theta_dot = self._beta * sig * z[1]
+        self.eta = np.zeros(3)
+        self.theta_ddot = -2.0 * self._beta * self.theta_dot - self._beta**2 * self.theta
+        self.dtheta_flex = np.zeros(3)
+        self.dtheta_dot_flex = np.zeros(3)
+
+    def _model(self, h: float) -> tuple[np.ndarray, np.ndarray]:
+        if self._cache is None or self._cache[0] != h:
+            phis, roots = [], []
+            for beta, q in zip(self._beta, self._q, strict=True):
+                phi, qd = discretize_flexure(float(beta), float(q), h)
+                phis.append(phi)
+                roots.append(_noise_factor(qd))
+            self._cache = (h, np.array(phis), np.array(roots))
+        return self._cache[1], self._cache[2]
+
+    def step(self, t: float, h: float) -> None:
+        phi, root = self._model(h)
+        x0 = np.stack([np.zeros(3), self.theta, self.theta_dot], axis=-1)  # (axis, 3)
+        noise = self._rng.standard_normal((3, 3))  # (axis, component)
+        x1 = np.einsum("aij,aj->ai", phi, x0) + np.einsum("aij,aj->ai", root, noise)
+        integral, theta, theta_dot = x1[:, 0], x1[:, 1], x1[:, 2]
+        d_theta = theta - self.theta
+        d_theta_dot = theta_dot - self.theta_dot
+        beta = self._beta
+        self.eta = (d_theta_dot + 2.0 * beta * d_theta + beta**2 * integral) / h
+        self.theta = theta
+        self.theta_dot = theta_dot
+        self.theta_ddot = -2.0 * beta * theta_dot - beta**2 * theta + self.eta
+        self.dtheta_flex = d_theta
+        self.dtheta_dot_flex = d_theta_dot

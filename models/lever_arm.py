@@ -1,0 +1,232 @@
+"""Slave-IMU kinematics from the master's motion: lever arm, deck flexure, mounting (seed 001).
+
+Frames: master body ``b`` (the motion block's body frame, origin at the master
+IMU), flexed deck frame ``d`` at the slave, slave body ``s``::
+
+    C_d_b = exp([theta x])           (flexure angle theta, master axes; J_r its right Jacobian)
+    C_s_d = euler_to_dcm(mount_rpy)  (fixed mounting misalignment, seed 001: 1, 1, 30 deg)
+    C_s_b = C_d_b C_s_d,             C_s_n = C_b_n(rpy) C_s_b
+
+Lever arm (seed 001 eq. 9-10, resolved in master body axes)::
+
+    r_p = r_0 + R_0 theta,   r_p' = R_0 theta',   r_p'' = R_0 theta''
+    R_0 = [[0, z0, 0], [0, 0, x0], [y0, 0, 0]]    for r_0 = [x0, y0, z0]
+
+Slave rate and specific force (``omega = omega_ib_b``, ``omega'`` its derivative
+in body axes; uniform gravity over the arm, as in eq. 2)::
+
+    omega_is_s = C_s_d^T (C_d_b^T omega + J_r(theta) theta')
+    f_p = f_b + omega x (omega x r_0) + omega' x r_0
+              + ([omega x]^2 + [omega' x]) R_0 theta + 2 [omega x] R_0 theta' + R_0 theta''
+    f_s = C_s_b^T f_p
+
+With ``theta'' = -2 beta theta' - beta^2 theta + eta`` the flexure terms are
+exactly eq. (11): ``(...) R_0 theta - R_2 theta + (2 [omega x] R_0 - R_1) theta' + R_0 eta``.
+``theta''`` at the step end is the DeckFlexure's ``theta_ddot`` (white noise as
+its step mean, see :mod:`models.deck_flexure`); over a step the integral of
+``R_0 theta''`` is exactly ``R_0 dtheta_dot_flex``.
+
+Increments (plain integrals over ``[t, t + h]``, no coning/sculling terms)::
+
+    dtheta_s = integral omega_is_s dt,       dv_s = integral f_s dt
+
+by composite Simpson on ``n = round(h / dt_truth)`` sub-steps. Inside the step
+the inputs are rebuilt (:class:`models.conventions.StepPath`): ``omega`` is the
+quartic through the previous and current step-end ``omega_ib_b`` and
+``omega_dot_b`` whose integral is ``dtheta_b`` (connect ShipMotion's
+``omega_dot_b``); ``f_b`` the quadratic through the previous and current ``f_b``
+with integral ``dv_b``; ``theta`` the cubic Hermite through ``theta, theta_dot``
+at both ends (start = end minus ``dtheta_flex``, ``dtheta_dot_flex``). So the
+angular acceleration is the master's analytic ``omega_dot_b`` (no finite
+differences), ``integral omega' dt`` is exactly the change of ``omega_ib_b``,
+and ``integral R_0 theta'' dt = R_0 dtheta_dot_flex``; with flexure off,
+``dtheta_s = C_s_d^T dtheta_b`` exactly. The first step (or one after a time
+jump, or with start values not forwarded at initialisation) uses the
+memoryless quadratic / linear paths. Inputs must come from blocks stepping at
+the same rate (the increments are per step).
+
+Approximations: uniform gravity over the arm (eq. 2): ``f_s`` omits the
+gravitation gradient, ~``3 GM/R^3 |r|`` <= 3e-5 m/s2 (3 ug) for the default 15 m arm,
+so a navigator fed with ``f_s`` must use the master's gravity to reproduce
+``v_n_s``; ``rpy_s`` and ``v_n_s`` are resolved in the master's NED frame (the
+slave's own local level differs by ``|r|/R`` ~ 2e-6 rad).
+
+Slave velocity (w.r.t. earth, master NED axes; ``omega_eb_b = omega - C_n_b omega_ie_n``)::
+
+    v_n_s = v_n + C_b_n (omega_eb_b x r_p + r_p')
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from models.block import Block, input_, output, parameter
+from models.conventions import (
+    StepPath,
+    cross,
+    dcm_to_euler,
+    euler_to_dcm,
+    rotvec_to_dcm_and_jacobian,
+    simpson_nodes,
+    step_hermite,
+    substeps,
+)
+from models.earth import omega_ie_n
+
+_DEG = math.pi / 180.0
+
+
+def r0_matrix(r0: np.ndarray) -> np.ndarray:
+    """Seed 001's ``R_0 = [[0, z0, 0], [0, 0, x0], [y0, 0, 0]]`` for ``r0 = [x0, y0, z0]``."""
+    x0, y0, z0 = (float(v) for v in r0)
+    return np.array([[0.0, z0, 0.0], [0.0, 0.0, x0], [y0, 0.0, 0.0]])
+
+
+class LeverArm(Block):
+    """Slave IMU on a lever arm with deck flexure and mounting misalignment (seed 001)."""
+
+    variables = (
+        parameter("r0", (10.0, 10.0, 5.0), "m", "lever arm master -> slave, master body axes"),
+        parameter(
+            "mount_rpy", (1.0 * _DEG, 1.0 * _DEG, 30.0 * _DEG), "rad", "slave mounting C_s_d"
+        ),
+        parameter("flexure", 1, description="1: use the flexure inputs, 0: rigid deck"),
+        parameter("dt_truth", 1.0e-3, "s", "inner integration step"),
+        input_("omega_ib_b", (0.0, 0.0, 0.0), "rad/s", "master rate w.r.t. inertial"),
+        input_("omega_dot_b", (0.0, 0.0, 0.0), "rad/s2", "master angular acceleration"),
+        input_("f_b", (0.0, 0.0, 0.0), "m/s2", "master specific force"),
+        input_("dtheta_b", (0.0, 0.0, 0.0), "rad", "master angle increment over the step"),
+        input_("dv_b", (0.0, 0.0, 0.0), "m/s", "master velocity increment over the step"),
+        input_("rpy", (0.0, 0.0, 0.0), "rad", "master attitude (roll, pitch, yaw of C_b_n)"),
+        input_("v_n", (0.0, 0.0, 0.0), "m/s", "master velocity, NED"),
+        input_("lat", 0.0, "rad", "master latitude"),
+        input_("theta", (0.0, 0.0, 0.0), "rad", "flexure angle"),
+        input_("theta_dot", (0.0, 0.0, 0.0), "rad/s", "flexure rate"),
+        input_("theta_ddot", (0.0, 0.0, 0.0), "rad/s2", "flexure acceleration (step-mean noise)"),
+        input_("dtheta_flex", (0.0, 0.0, 0.0), "rad", "flexure angle change over the step"),
+        input_("dtheta_dot_flex", (0.0, 0.0, 0.0), "rad/s", "flexure rate change over the step"),
+        output("omega_is_s", (0.0, 0.0, 0.0), "rad/s", "slave rate w.r.t. inertial, slave axes"),
+        output("f_s", (0.0, 0.0, 0.0), "m/s2", "slave specific force, slave axes"),
+        output("dtheta_s", (0.0, 0.0, 0.0), "rad", "integral of omega_is_s over the step"),
+        output("dv_s", (0.0, 0.0, 0.0), "m/s", "integral of f_s over the step"),
+        output("rpy_s", (0.0, 0.0, 0.0), "rad", "slave attitude (roll, pitch, yaw of C_s_n)"),
+        output("v_n_s", (0.0, 0.0, 0.0), "m/s", "slave velocity, master NED axes"),
+        output("r_p", (0.0, 0.0, 0.0), "m", "current lever arm r0 + R0 theta, master axes"),
+    )
+    default_stop = 2.0
+
+    def initialize(self) -> None:
+        if self.flexure not in (0, 1):
+            raise ValueError(f"LeverArm.flexure must be 0 or 1, got {self.flexure}")
+        self._r0 = np.asarray(self.r0, dtype=float).copy()
+        self._R0 = r0_matrix(self._r0)
+        self._c_s_d = euler_to_dcm(np.asarray(self.mount_rpy, dtype=float))
+        self._nodes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._w_path = StepPath()
+        self._w_path.reset(self.start_time, self.omega_ib_b, self.omega_dot_b)
+        self._f_path = StepPath()
+        self._f_path.reset(self.start_time, self.f_b)
+        self._publish_end()
+        self.dtheta_s = np.zeros(3)
+        self.dv_s = np.zeros(3)
+
+    def _flex_inputs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if not self.flexure:
+            return np.zeros(3), np.zeros(3), np.zeros(3)
+        return (
+            np.asarray(self.theta, dtype=float),
+            np.asarray(self.theta_dot, dtype=float),
+            np.asarray(self.theta_ddot, dtype=float),
+        )
+
+    def _slave(
+        self,
+        w: np.ndarray,
+        wd: np.ndarray,
+        f: np.ndarray,
+        th: np.ndarray,
+        thd: np.ndarray,
+        thdd: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """Slave rate and specific force (slave axes) and ``C_d_b``, from (m, 3) inputs.
+
+        Returns
+        -------
+        w_s, f_s : ndarray, shape (m, 3)
+        c_d_b : ndarray, shape (m, 3, 3), or None without flexure
+        """
+        r = self._r0 + th @ self._R0.T
+        # omega x (omega x r) = omega (omega . r) - r |omega|^2
+        wr = np.sum(w * r, axis=-1, keepdims=True)
+        ww = np.sum(w * w, axis=-1, keepdims=True)
+        f_p = f + cross(wd, r) + w * wr - r * ww
+        if not self.flexure:
+            return w @ self._c_s_d, f_p @ self._c_s_d, None
+        f_p = f_p + 2.0 * cross(w, thd @ self._R0.T) + thdd @ self._R0.T
+        c_d_b, j_r = rotvec_to_dcm_and_jacobian(th)
+        w_d = (w[:, None, :] @ c_d_b)[:, 0, :] + (j_r @ thd[:, :, None])[:, :, 0]
+        f_d = (f_p[:, None, :] @ c_d_b)[:, 0, :]
+        return w_d @ self._c_s_d, f_d @ self._c_s_d, c_d_b
+
+    def _publish_end(self) -> None:
+        """Outputs at the time of the current inputs (used at initialisation)."""
+        th, thd, thdd = self._flex_inputs()
+        w_s, f_s, c_d_b = self._slave(
+            np.asarray(self.omega_ib_b, dtype=float)[None, :],
+            np.asarray(self.omega_dot_b, dtype=float)[None, :],
+            np.asarray(self.f_b, dtype=float)[None, :],
+            th[None, :],
+            thd[None, :],
+            thdd[None, :],
+        )
+        self._finish(w_s[0], f_s[0], th, thd, None if c_d_b is None else c_d_b[0])
+
+    def _finish(
+        self,
+        w_s: np.ndarray,
+        f_s: np.ndarray,
+        th: np.ndarray,
+        thd: np.ndarray,
+        c_d_b: np.ndarray | None,
+    ) -> None:
+        """Set the step-end outputs from the slave rate and force and the flexure state."""
+        self.omega_is_s = w_s.copy()
+        self.f_s = f_s.copy()
+        c_b_n = euler_to_dcm(np.asarray(self.rpy, dtype=float))
+        c_s_b = self._c_s_d if c_d_b is None else c_d_b @ self._c_s_d
+        self.rpy_s = dcm_to_euler(c_b_n @ c_s_b)
+        self.r_p = self._r0 + self._R0 @ th
+        w_eb = np.asarray(self.omega_ib_b, dtype=float) - c_b_n.T @ omega_ie_n(float(self.lat))
+        self.v_n_s = np.asarray(self.v_n, dtype=float) + c_b_n @ (
+            cross(w_eb, self.r_p) + self._R0 @ thd
+        )
+
+    def step(self, t: float, h: float) -> None:
+        n = substeps(h, self.dt_truth)
+        if n not in self._nodes:
+            self._nodes[n] = simpson_nodes(n)
+        s, wts = self._nodes[n]
+        w, wd = self._w_path.nodes(t, h, self.omega_ib_b, self.dtheta_b, s, self.omega_dot_b)
+        f, _ = self._f_path.nodes(t, h, self.f_b, self.dv_b, s)
+        if self.flexure:
+            th1 = np.asarray(self.theta, dtype=float)
+            thd1 = np.asarray(self.theta_dot, dtype=float)
+            th0 = th1 - np.asarray(self.dtheta_flex, dtype=float)
+            thd0 = thd1 - np.asarray(self.dtheta_dot_flex, dtype=float)
+            th, thd, thdd = step_hermite(th0, thd0, th1, thd1, h, s)
+        else:
+            th = thd = thdd = np.zeros_like(w)
+        w_s, f_s, c_d_b = self._slave(w, wd, f, th, thd, thdd)
+        self.dtheta_s = h * (wts @ w_s)
+        self.dv_s = h * (wts @ f_s)
+        # Step end: the path's end node equals the inputs except theta'', which is the
+        # DeckFlexure's theta_ddot (step-mean noise) rather than the Hermite end slope.
+        f_end = f_s[-1]
+        if c_d_b is None:
+            self._finish(w_s[-1], f_end, np.zeros(3), np.zeros(3), None)
+            return
+        d_acc = np.asarray(self.theta_ddot, dtype=float) - thdd[-1]
+        f_end = f_end + ((self._R0 @ d_acc) @ c_d_b[-1]) @ self._c_s_d
+        self._finish(w_s[-1], f_end, th1, thd1, c_d_b[-1])
