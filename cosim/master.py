@@ -281,7 +281,10 @@ class Master:
             for v in outs:
                 slots[(name, v.name)] = len(start_values)
                 idx.append(len(start_values))
-                start_values.append(float(v.start) if v.start is not None else math.nan)
+                # An output without a start value (FMI initial="calculated") has no value
+                # before initialisation; where one is read then (Jacobi initialisation, a
+                # delayed loop connection) the master passes 0.0.
+                start_values.append(float(v.start) if v.start is not None else 0.0)
             self._outputs[name] = ([v.vr for v in outs], np.array(idx, dtype=int), outs)
         self._start_values = np.array(start_values)
         self._inputs: dict[str, tuple[list[int], np.ndarray, np.ndarray]] = {}

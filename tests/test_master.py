@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -173,3 +174,18 @@ def test_reset_then_run_again_reproduces_the_run_and_takes_new_seeds(fmu_dir) ->
     for name in first.dtype.names:
         np.testing.assert_array_equal(first[name], second[name])
     assert not np.array_equal(first["gm.x"], third["gm.x"])
+
+
+def test_jacobi_initialisation_passes_zero_for_outputs_without_start() -> None:
+    class NoStart(InProcessHost):
+        """A Ramp whose output declares no start value, as vendor FMUs often do."""
+
+        def __init__(self, name: str) -> None:
+            super().__init__(name, Ramp)
+            self.variables["y"] = dataclasses.replace(self.variables["y"], start=None)
+
+    blocks = {"src": NoStart("src"), "sink": InProcessHost("sink", Pass)}
+    system = System(blocks, [Connection("src", "y", "sink", "u")])
+    d = Master(system, MasterSettings(H, 1.05, start=1.0, coupling=JACOBI)).run().data
+    assert d["sink.y"][0] == 0.0  # no start value: the sink is initialised with 0.0
+    np.testing.assert_allclose(d["sink.y"][1:], d["src.y"][:-1], rtol=0, atol=1e-15)
