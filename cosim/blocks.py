@@ -17,16 +17,21 @@ from __future__ import annotations
 
 import abc
 import ctypes
+import dataclasses
+import difflib
 import hashlib
 import importlib
+import re
 import shutil
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import models  # noqa: F401  (imported before any FMU, so FMUs of ours reuse this copy)
-from cosim.errors import FmuError
+from cosim.errors import FmuError, UnitError
+from cosim.units import Unit, unit_from_fmi
 
 #: Variable types that connections and the recorder handle.
 REAL = "Real"
@@ -54,6 +59,12 @@ class Variable:
         Start value, or None when the block declares none.
     description : str
         The block's description of the variable.
+    unit_def : Unit or None
+        The unit as defined by the FMU's ``UnitDefinitions`` (``BaseUnit`` exponents,
+        factor, offset), or None when the FMU gives no definition (the name is parsed).
+    fmu_name : str
+        The variable's own name in the FMU when a rename map exposes it under ``name``
+        (empty when not renamed).
     """
 
     name: str
@@ -64,6 +75,18 @@ class Variable:
     unit: str = "1"
     start: Any = None
     description: str = ""
+    unit_def: Unit | None = None
+    fmu_name: str = ""
+
+    @property
+    def conversion_unit(self) -> str | Unit:
+        """What unit conversions use: the FMU's unit definition when it has one, else the name."""
+        return self.unit_def if self.unit_def is not None else self.unit
+
+    @property
+    def own_name(self) -> str:
+        """The variable's name in its block or FMU (differs from :attr:`name` when renamed)."""
+        return self.fmu_name or self.name
 
 
 class BlockHost(abc.ABC):
@@ -90,6 +113,24 @@ class BlockHost(abc.ABC):
     def by_causality(self, causality: str) -> list[Variable]:
         """Variables with the given causality, in declaration order."""
         return [v for v in self.variables.values() if v.causality == causality]
+
+    def rename(self, mapping: Mapping[str, str]) -> None:
+        """Expose variables under other names (a scenario's ``rename`` map).
+
+        Value references are unchanged, so the master and the FMU are unaffected; only
+        the names that connections, parameters and outputs use change.
+
+        Parameters
+        ----------
+        mapping : mapping of str to str
+            The block's own variable name -> the name to use (see :func:`apply_rename`).
+
+        Raises
+        ------
+        FmuError
+            An unknown variable, an invalid new name, or two variables with one name.
+        """
+        self.variables = apply_rename(self.variables, mapping, f"block '{self.name}'")
 
     # -- life cycle ---------------------------------------------------------
     @abc.abstractmethod
@@ -226,6 +267,157 @@ def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+#: A scalar variable name a scenario can use: ``name`` or ``name[i]``.
+SCALAR_NAME = re.compile(r"^[A-Za-z_]\w*(\[[1-9]\d*\])?$")
+
+
+def apply_rename(
+    variables: Mapping[str, Variable], mapping: Mapping[str, str], owner: str
+) -> dict[str, Variable]:
+    """The variables with names changed by a rename map.
+
+    Parameters
+    ----------
+    variables : mapping of str to Variable
+        A block's variables by name (declaration order).
+    mapping : mapping of str to str
+        Own name -> new name. A key may also be the base of a vector (``acc`` for
+        ``acc[1]`` .. ``acc[n]``) when the value is a base name too (``f_meas_b``): each
+        element is renamed (``acc[i]`` -> ``f_meas_b[i]``). Variables not in the map
+        keep their names.
+    owner : str
+        Who the variables belong to, for messages (``"block 'imu'"``).
+
+    Returns
+    -------
+    dict
+        New name -> :class:`Variable` (``name`` changed, ``fmu_name`` the own name).
+
+    Raises
+    ------
+    FmuError
+        A key that names no variable (with the closest names), a new name that is not
+        ``name`` or ``name[i]``, or two variables that would share a name.
+    """
+    by_own = {v.own_name: v for v in variables.values()}
+    scalar: dict[str, str] = {}
+    for old, new in mapping.items():
+        if not isinstance(new, str) or not SCALAR_NAME.match(new):
+            raise FmuError(
+                f"{owner}: rename '{old}': expected a new name like 'dtheta_meas_b[1]' or "
+                f"'lat', got {new!r}"
+            )
+        if old in by_own:
+            scalar[old] = new
+            continue
+        elements = [n for n in by_own if n.startswith(f"{old}[") and n.endswith("]")]
+        if elements and "[" not in new:
+            for n in elements:
+                scalar[n] = f"{new}{n[len(old) :]}"
+            continue
+        hint = difflib.get_close_matches(old, list(by_own), n=3)
+        tip = f" Closest names: {', '.join(hint)}." if hint else ""
+        raise FmuError(f"{owner}: rename: expected a variable of the FMU, got '{old}'.{tip}")
+    out: dict[str, Variable] = {}
+    for v in variables.values():
+        new = scalar.get(v.own_name, v.name)
+        if new in out:
+            first = out[new].own_name
+            raise FmuError(
+                f"{owner}: rename: '{v.own_name}' and '{first}' would both be called "
+                f"'{new}'; expected one variable per name (rename or drop one of them)"
+            )
+        out[new] = v if new == v.name else dataclasses.replace(v, name=new, fmu_name=v.own_name)
+    return out
+
+
+#: FMI 3 types that the host maps onto the FMI 2 type names the rest of ins-cosim uses.
+_FMI3_TYPES = {"Float64": "Real", "Int32": "Integer"}
+
+
+def fmu_units(md: Any) -> dict[str, Unit | None]:
+    """The unit definitions of a model description.
+
+    Parameters
+    ----------
+    md : fmpy.model_description.ModelDescription
+        The FMU's model description.
+
+    Returns
+    -------
+    dict
+        Unit name -> :class:`~cosim.units.Unit` built from its ``BaseUnit``, or None for
+        a unit declared without one (its name will be parsed).
+
+    Raises
+    ------
+    FmuError
+        A ``BaseUnit`` that cannot be read (e.g. a factor of 0).
+    """
+    out: dict[str, Unit | None] = {}
+    for u in md.unitDefinitions:
+        b = u.baseUnit
+        if b is None:
+            out[u.name] = None
+            continue
+        exponents = {k: getattr(b, k) for k in ("kg", "m", "s", "A", "K", "mol", "cd", "rad")}
+        try:
+            out[u.name] = unit_from_fmi(u.name, exponents, float(b.factor), float(b.offset))
+        except UnitError as exc:
+            raise FmuError(f"model description: {exc.message}") from exc
+    return out
+
+
+def fmu_variables(md: Any) -> dict[str, Variable]:
+    """The scalar variables of a model description, as :class:`Variable` s.
+
+    Parameters
+    ----------
+    md : fmpy.model_description.ModelDescription
+        FMI 2.0 or 3.0.
+
+    Returns
+    -------
+    dict
+        Name -> Variable, in declaration order. FMI 3 ``Float64`` and ``Int32`` are
+        reported as ``Real`` and ``Integer``; other FMI 3 types keep their names.
+
+    Raises
+    ------
+    FmuError
+        An FMI 3 array variable (ins-cosim exchanges scalars) or a bad unit definition.
+    """
+    units = fmu_units(md)
+    out: dict[str, Variable] = {}
+    for v in md.modelVariables:
+        if getattr(v, "dimensions", None):
+            raise FmuError(
+                f"variable '{v.name}' is an FMI 3 array; expected scalar variables "
+                f"(name[1], name[2], ...)"
+            )
+        unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
+        vtype = _FMI3_TYPES.get(v.type, v.type)
+        start = v.start
+        if start is not None and vtype == "Real":
+            start = float(start)
+        elif start is not None and vtype == "Integer":
+            start = int(start)
+        elif start is not None and vtype == "Boolean":
+            start = start in (True, "true", "1", 1)
+        out[v.name] = Variable(
+            name=v.name,
+            vr=v.valueReference,
+            type=vtype,
+            causality=v.causality,
+            variability=v.variability or "continuous",
+            unit=unit or "1",
+            start=start,
+            description=v.description or "",
+            unit_def=units.get(unit) if unit else None,
+        )
+    return out
+
+
 class FmuHost(BlockHost):
     """Runs an FMU file through fmpy.
 
@@ -272,26 +464,11 @@ class FmuHost(BlockHost):
         self.guid = md.guid
         self.sha256 = _sha256(path)
         self.messages: list[str] = []
-        for v in md.modelVariables:
-            unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
-            vtype = {"Float64": "Real", "Float32": "Real", "Int32": "Integer"}.get(v.type, v.type)
-            start = v.start
-            if start is not None and vtype == "Real":
-                start = float(start)
-            elif start is not None and vtype == "Integer":
-                start = int(start)
-            elif start is not None and vtype == "Boolean":
-                start = start in (True, "true", "1", 1)
-            self.variables[v.name] = Variable(
-                name=v.name,
-                vr=v.valueReference,
-                type=vtype,
-                causality=v.causality,
-                variability=v.variability or "continuous",
-                unit=unit or "1",
-                start=start,
-                description=v.description or "",
-            )
+        try:
+            self.variables = fmu_variables(md)
+        except FmuError as exc:
+            raise FmuError(f"block '{name}': FMU '{path}': {exc}") from exc
+        self._state = "none"
         self._unzipdir = tempfile.mkdtemp(prefix=f"ins_cosim_{name}_")
         try:
             from fmpy import extract
@@ -310,6 +487,12 @@ class FmuHost(BlockHost):
             raise FmuError(f"block '{name}': cannot instantiate FMU '{path}': {exc}{log}") from exc
 
     def _logger(self, component: Any, instance: bytes, status: int, category: bytes, msg: bytes):
+        self._log_text(msg)
+
+    def _logger3(self, environment: Any, status: int, category: bytes, msg: bytes) -> None:
+        self._log_text(msg)
+
+    def _log_text(self, msg: Any) -> None:
         text = msg.decode("utf-8", "replace") if isinstance(msg, bytes) else str(msg)
         self.messages.append(text)
         del self.messages[:-20]
@@ -361,7 +544,8 @@ class FmuHost(BlockHost):
                 modelIdentifier=ident,
                 instanceName=self.name,
             )
-            fmu.instantiate(loggingOn=True, logMessage=None)
+            # our own log callback: fmpy's default prints every FMU message to stdout
+            fmu.instantiate(loggingOn=True, logMessage=self._logger3)
             self._get = {
                 "Real": fmu.getFloat64,
                 "Integer": fmu.getInt32,
@@ -373,7 +557,20 @@ class FmuHost(BlockHost):
                 "Boolean": fmu.setBoolean,
                 "String": fmu.setString,
             }
+            # parameters of the other FMI 3 types keep their type names (fmu_variables)
+            for vtype in (
+                "Float32",
+                "Int8",
+                "UInt8",
+                "Int16",
+                "UInt16",
+                "UInt32",
+                "Int64",
+                "UInt64",
+            ):
+                self._set[vtype] = getattr(fmu, f"set{vtype}")
         self.fmu = fmu
+        self._state = "instantiated"
 
     def _call(self, call: str, fn: Any, *args: Any) -> Any:
         try:
@@ -388,6 +585,8 @@ class FmuHost(BlockHost):
             self._apply_parameters(parameters, self._set)
             self._call("fmi2EnterInitializationMode", self.fmu.enterInitializationMode)
         else:
+            # FMI 3: parameters and inputs are set in the Instantiated state; the start
+            # time is an argument of fmi3EnterInitializationMode
             self._apply_parameters(parameters, self._set)
             self._call(
                 "fmi3EnterInitializationMode",
@@ -395,12 +594,26 @@ class FmuHost(BlockHost):
                 None,
                 start_time,
             )
+        self._state = "initialization"
 
     def exit_init(self) -> None:
         self._call("exitInitializationMode", self.fmu.exitInitializationMode)
+        # FMI 3 co-simulation without event mode goes straight to Step Mode
+        self._state = "stepping"
 
     def do_step(self, t: float, h: float) -> None:
-        self._call("doStep", self.fmu.doStep, t, h)
+        if self.fmi_version == "2.0":
+            self._call("doStep", self.fmu.doStep, t, h)
+            return
+        _event, terminate, early, last = self._call("doStep", self.fmu.doStep, t, h)
+        if terminate:
+            raise BlockCallError(
+                "fmi3DoStep", f"the FMU asked to terminate the simulation (at t = {last:.9g} s)"
+            )
+        if early:  # pragma: no cover - early return is not allowed at instantiation
+            raise BlockCallError(
+                "fmi3DoStep", f"expected a complete step to {t + h!r} s, got one to {last!r} s"
+            )
 
     def get_real(self, vrs: list[int]) -> list[float]:
         return list(self._get["Real"](vrs))
@@ -410,10 +623,15 @@ class FmuHost(BlockHost):
 
     def reset(self) -> None:
         self._call("reset", self.fmu.reset)
+        self._state = "instantiated"
 
     def terminate(self) -> None:
         try:
-            self.fmu.terminate()
+            # fmi2Terminate / fmi3Terminate are legal only after initialisation; an FMU
+            # that was never set up (or failed in initialisation) is just freed
+            if self._state == "stepping":
+                self.fmu.terminate()
         finally:
+            self._state = "none"
             self.fmu.freeInstance()
             shutil.rmtree(self._unzipdir, ignore_errors=True)

@@ -162,5 +162,142 @@ def fmus(fmu_dir: Path, build: bool) -> None:
     sys.exit(1 if bad else 0)
 
 
+class _VerifyCommand(click.Command):
+    """``verify`` exits 3 on a usage error: its codes 1 and 2 are verdicts."""
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        try:
+            return super().parse_args(ctx, args)
+        except click.UsageError as exc:
+            exc.exit_code = 3
+            raise
+
+
+@main.command(cls=_VerifyCommand)
+@click.argument("scenario", type=click.Path(path_type=Path))
+@click.option(
+    "--report",
+    "report_dir",
+    type=click.Path(path_type=Path),
+    required=True,
+    help="Folder for report.html, junit.xml, report.json, metrics.csv and runs/.",
+)
+@click.option("--runs", type=int, default=None, help="Runs (default: [campaign] runs, else 1).")
+@click.option(
+    "--workers", type=int, default=None, help="Local worker processes (default: CPU count)."
+)
+@click.option(
+    "--cluster", default=None, help="Dask scheduler address (tcp://host:8786) instead of workers."
+)
+@click.option("--seed", type=int, default=None, help="Campaign seed (default: [campaign] seed).")
+@click.option(
+    "--fmu-dir",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Run built-in models from the FMUs in this folder instead of in-process.",
+)
+@click.option("--resume", is_flag=True, help="Keep the finished runs in --report, run the rest.")
+@click.option("--progress/--no-progress", default=True, help="Progress bar on stderr.")
+def verify(
+    scenario: Path,
+    report_dir: Path,
+    runs: int | None,
+    workers: int | None,
+    cluster: str | None,
+    seed: int | None,
+    fmu_dir: Path | None,
+    resume: bool,
+    progress: bool,
+) -> None:
+    """Verify the requirements of SCENARIO over a Monte Carlo campaign.
+
+    Exit code: 0 all satisfied, 1 any violated, 2 any undecided (none violated),
+    3 bad input, 130 interrupted (finished runs are kept: rerun with --resume).
+    """
+    from cosim.campaign import CampaignInterrupted, run_campaign
+    from cosim.report import write_reports
+
+    try:
+        campaign = run_campaign(
+            scenario,
+            report_dir,
+            runs=runs,
+            seed=seed,
+            workers=workers,
+            cluster=cluster,
+            fmu_dir=fmu_dir,
+            resume=resume,
+            progress=progress,
+        )
+        paths = write_reports(campaign)
+    except UserError as exc:
+        _fail(exc)
+    except (CampaignInterrupted, KeyboardInterrupt) as exc:
+        click.echo(f"{exc or 'interrupted'}", err=True)
+        sys.exit(130)
+    failed = len(campaign.failed_runs)
+    click.echo(
+        f"{campaign.scenario['name']}: {campaign.settings.runs} run(s), {failed} failed, "
+        f"campaign seed {campaign.settings.seed}"
+    )
+    for req, v in zip(campaign.requirements, campaign.verdicts, strict=True):
+        click.echo(f"  {v.verdict.upper():<10} {req.id}: {v.reason}")
+    click.echo(f"wrote {paths['html']}, {paths['junit']} and {paths['json']}")
+    sys.exit(campaign.exit_code)
+
+
+@main.command("check-fmu")
+@click.argument("fmu", type=click.Path(path_type=Path))
+@click.option("--role", required=True, help="Role name (imu, motion, ...) or a role spec .toml.")
+@click.option(
+    "--rename",
+    "rename_file",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="TOML file with the rename map to apply ([rename] or [blocks.<name>.rename]).",
+)
+@click.option("--block", default=None, help="Block name in the printed rename table.")
+def check_fmu(fmu: Path, role: str, rename_file: Path | None, block: str | None) -> None:
+    """Report how FMU fills a role: variables, causality, units, capabilities, rename map.
+
+    Exit code 0 when it fills the role (with the printed rename map), 1 when it does not.
+    """
+    from cosim.interfaces import check_fmu as check_role
+    from cosim.interfaces import format_report, read_rename_file
+
+    try:
+        rename = read_rename_file(rename_file) if rename_file is not None else None
+        report = check_role(fmu, role, rename)
+    except UserError as exc:
+        _fail(exc)
+    click.echo(format_report(report, block or report.match.role.name))
+    sys.exit(0 if report.satisfied else 1)
+
+
+@main.command("export-ssp")
+@click.argument("scenario", type=click.Path(path_type=Path))
+@click.argument("out", type=click.Path(path_type=Path))
+@click.option(
+    "--fmu-dir",
+    type=click.Path(path_type=Path),
+    default=DEFAULT_FMU_DIR,
+    show_default=True,
+    help="The FMUs of the built-in models (built by `make fmus`).",
+)
+def export_ssp(scenario: Path, out: Path, fmu_dir: Path) -> None:
+    """Write SCENARIO's FMU blocks, connections and parameters as an SSP 1.0 archive OUT."""
+    from cosim.ssp import export_ssp as export
+
+    try:
+        result = export(scenario, out, fmu_dir)
+    except UserError as exc:
+        _fail(exc)
+    click.echo(
+        f"wrote {result.path}: {len(result.components)} components, {result.connections} "
+        f"scalar connections, {result.parameters} parameter values"
+    )
+    click.echo("SSP tools such as libcosim step it with Jacobi coupling (coupling = 'jacobi')")
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

@@ -60,6 +60,17 @@ Threads and processes
     code packed in its resources (not this source tree's), and libcosim unpacks the
     FMUs into the child's private temporary directory, removed even after a crash.
     libcosim 0.11 loads FMI 1.0 and 2.0 co-simulation FMUs (not FMI 3.0).
+
+SSP archives
+    :func:`run_libcosim_ssp` runs an ``.ssp`` archive (``ins-cosim export-ssp``) through
+    libcosim's own SSP loader (``cosim_ssp_fixed_step_execution_create``): libcosim
+    reads the components, the connections (with their linear transformations) and the
+    parameter values from ``SystemStructure.ssd`` itself; only the step, the start time
+    and what to observe come from the caller. Variables are named as in the FMUs.
+    Everything else (initialisation, Jacobi coupling, recording) is as above. libcosim's
+    loader only *warns* about a parameter value it cannot apply (SSP allows ignoring
+    them); the runner turns that warning into a :class:`LibcosimError`, so a misnamed
+    parameter cannot pass unnoticed.
 """
 
 from __future__ import annotations
@@ -79,12 +90,14 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["LibcosimError", "run_libcosim"]
+__all__ = ["LibcosimError", "run_libcosim", "run_libcosim_ssp"]
 
 #: Macro steps run per call into libcosim; the observer buffers one chunk.
 _CHUNK = 10_000
 #: Minimum severity libcosim prints (0 trace .. 5 fatal): warnings and errors.
 _LOG_WARNING = 3
+#: What libcosim's SSP loader logs when it skips a parameter value it cannot apply.
+_IGNORED_PARAMETER = "SSP parameter set"
 #: Exit code of the child process when libcosim refused something.
 _EXIT_REFUSED = 3
 _INT32 = (-(2**31), 2**31 - 1)
@@ -207,25 +220,8 @@ def run_libcosim(
         The child process running libcosim failed for another reason (its stderr is in
         the message).
     """
-    start_ns = _to_ns(start, "start")
-    step_ns = _to_ns(step, "step")
-    stop_ns = _to_ns(stop, "stop")
-    if step_ns <= 0:
-        raise ValueError(f"step must be positive, got {step!r} s")
-    if stop_ns <= start_ns:
-        raise ValueError(f"stop ({stop!r} s) must be after start ({start!r} s)")
-    n_steps, rest = divmod(stop_ns - start_ns, step_ns)
-    if rest:
-        raise ValueError(
-            f"stop - start = {(stop_ns - start_ns) / 1e9!r} s is not a whole number of "
-            f"steps of {step!r} s"
-        )
-    pairs = [(str(b), str(v)) for b, v in observe]
-    seen: set[tuple[str, str]] = set()
-    for pair in pairs:
-        if pair in seen:
-            raise ValueError(f"'{pair[0]}.{pair[1]}' is observed twice")
-        seen.add(pair)
+    start_ns, step_ns, n_steps = _grid(start, step, stop)
+    pairs = _observed(observe)
     spec = {
         "fmus": {},
         "parameters": {},
@@ -249,7 +245,88 @@ def run_libcosim(
     return _run_isolated(spec)
 
 
+def run_libcosim_ssp(
+    ssp_path: Path | str,
+    step: float,
+    stop: float,
+    observe: Sequence[tuple[str, str]],
+    start: float = 0.0,
+) -> np.ndarray:
+    """Run an SSP archive in libcosim's fixed-step (Jacobi) algorithm.
+
+    Parameters
+    ----------
+    ssp_path : Path or str
+        The ``.ssp`` archive (``SystemStructure.ssd`` and ``resources/*.fmu``).
+    step : float
+        Macro step [s], a whole number of nanoseconds (overrides the archive's).
+    stop : float
+        Stop time [s]; ``stop - start`` must be a whole number of steps.
+    observe : sequence of (str, str)
+        ``(component, variable)`` pairs to record, with the FMU's variable names.
+    start : float, optional
+        Start time [s], default 0 (overrides the archive's).
+
+    Returns
+    -------
+    numpy.ndarray
+        As :func:`run_libcosim`: ``n_steps + 1`` rows, ``time`` then one field
+        ``"component.variable"`` per observed variable.
+
+    Raises
+    ------
+    ValueError
+        A time grid libcosim cannot represent, or a variable observed twice.
+    LibcosimError
+        libcosim cannot load the archive, ignores one of its parameter values, or an FMU
+        fails during the run.
+    RuntimeError
+        The child process failed for another reason.
+    """
+    path = Path(ssp_path)
+    if not path.is_file():
+        raise LibcosimError(f"SSP archive not found: {path}")
+    start_ns, step_ns, n_steps = _grid(start, step, stop)
+    spec = {
+        "ssp": str(path.resolve()),
+        "observe": [list(p) for p in _observed(observe)],
+        "start_ns": start_ns,
+        "step_ns": step_ns,
+        "n_steps": n_steps,
+    }
+    return _run_isolated(spec)
+
+
 # --------------------------------------------------------------------------- helpers
+def _grid(start: float, step: float, stop: float) -> tuple[int, int, int]:
+    """``(start_ns, step_ns, n_steps)`` of a time grid, or ValueError."""
+    start_ns = _to_ns(start, "start")
+    step_ns = _to_ns(step, "step")
+    stop_ns = _to_ns(stop, "stop")
+    if step_ns <= 0:
+        raise ValueError(f"step must be positive, got {step!r} s")
+    if stop_ns <= start_ns:
+        raise ValueError(f"stop ({stop!r} s) must be after start ({start!r} s)")
+    n_steps, rest = divmod(stop_ns - start_ns, step_ns)
+    if rest:
+        raise ValueError(
+            f"stop - start = {(stop_ns - start_ns) / 1e9!r} s is not a whole number of "
+            f"steps of {step!r} s"
+        )
+    return start_ns, step_ns, n_steps
+
+
+def _observed(observe: Sequence[tuple[str, str]]) -> list[tuple[str, str]]:
+    """The observed pairs as strings, or ValueError for a pair listed twice."""
+    pairs = [(str(b), str(v)) for b, v in observe]
+    seen: set[tuple[str, str]] = set()
+    for pair in pairs:
+        if pair in seen:
+            raise ValueError(f"'{pair[0]}.{pair[1]}' is observed twice")
+        seen.add(pair)
+    return pairs
+
+
 def _to_ns(seconds: float, what: str) -> int:
     """Exact integer nanoseconds of a time given in seconds (its shortest decimal form)."""
     try:
@@ -322,6 +399,10 @@ class _VariableDescription(ctypes.Structure):
     ]
 
 
+class _SlaveInfo(ctypes.Structure):
+    _fields_ = [("name", ctypes.c_char * 1024), ("index", ctypes.c_int)]
+
+
 class _ExecutionStatus(ctypes.Structure):
     _fields_ = [
         ("current_time", ctypes.c_int64),
@@ -375,6 +456,15 @@ def _prototypes() -> dict[str, tuple[Any, list[Any]]]:
             [ptr, i32, u32, i64, ctypes.c_size_t, ptr, ptr, ptr],
         ),
         "cosim_execution_step": (i32, [ptr, ctypes.c_size_t]),
+        "cosim_ssp_fixed_step_execution_create": (
+            ptr,
+            [ctypes.c_char_p, ctypes.c_bool, i64, i64],
+        ),
+        "cosim_execution_get_num_slaves": (i32, [ptr]),
+        "cosim_execution_get_slave_infos": (
+            i32,
+            [ptr, ctypes.POINTER(_SlaveInfo), ctypes.c_size_t],
+        ),
     }
 
 
@@ -410,49 +500,83 @@ def _last_error(lib: ctypes.CDLL) -> str:
 def _simulate(spec: dict[str, Any]) -> np.ndarray:
     """Build the libcosim execution described by ``spec``, run it, return the samples.
 
-    Runs in the child process. After a failed step the execution is left alone (the
-    child exits): freeing pythonfmu instances after an FMU error can crash.
+    Runs in the child process. ``spec`` holds either ``fmus``, ``parameters`` and
+    ``connections`` (built here) or ``ssp`` (an archive libcosim loads itself). After a
+    failed step the execution is left alone (the child exits): freeing pythonfmu
+    instances after an FMU error can crash.
     """
     lib = _library()
     lib.cosim_log_set_output_level(_LOG_WARNING)
-    start_ns, step_ns, n_steps = spec["start_ns"], spec["step_ns"], spec["n_steps"]
-    algorithm = lib.cosim_fixed_step_algorithm_create(step_ns)
-    if not algorithm:
-        raise LibcosimError(f"cannot create the fixed-step algorithm: {_last_error(lib)}")
-    execution = lib.cosim_execution_create_with_algorithm(start_ns, algorithm)
-    lib.cosim_algorithm_destroy(algorithm)  # the execution holds its own reference
-    if not execution:
-        raise LibcosimError(f"cannot create the execution: {_last_error(lib)}")
-    observer = None
-    stepped = False
-    try:
-        index, variables = _add_slaves(lib, execution, spec["fmus"])
-        _set_initial_values(lib, execution, index, variables, spec["parameters"])
-        _connect(lib, execution, index, variables, spec["connections"])
-        chunk = max(1, min(_CHUNK, n_steps))
-        observer = lib.cosim_buffered_time_series_observer_create(chunk + 1)
-        if not observer or lib.cosim_execution_add_observer(execution, observer) != 0:
-            raise LibcosimError(f"cannot add a time-series observer: {_last_error(lib)}")
-        observed = _start_observing(lib, observer, index, variables, spec["observe"])
-        data = np.zeros(
-            n_steps + 1,
-            dtype=[("time", np.float64)] + [(name, dtype) for name, _, _, dtype in observed],
+    start_ns, step_ns = spec["start_ns"], spec["step_ns"]
+    if "ssp" in spec:
+        execution = lib.cosim_ssp_fixed_step_execution_create(
+            spec["ssp"].encode(), True, start_ns, step_ns
         )
-        data["time"] = (start_ns + np.arange(n_steps + 1, dtype=np.int64) * step_ns) / 1e9
-        done = 0
-        while done < n_steps:
-            count = min(chunk, n_steps - done)
-            stepped = True
-            if lib.cosim_execution_step(execution, count) != 0:
-                raise _step_failure(lib, execution, list(spec["fmus"]))
-            first = 0 if done == 0 else done + 1
-            _fetch(lib, observer, observed, data, first, done + count, start_ns, step_ns)
-            done += count
+        if not execution:
+            raise LibcosimError(f"cannot load the SSP archive {spec['ssp']}: {_last_error(lib)}")
+    else:
+        algorithm = lib.cosim_fixed_step_algorithm_create(step_ns)
+        if not algorithm:
+            raise LibcosimError(f"cannot create the fixed-step algorithm: {_last_error(lib)}")
+        execution = lib.cosim_execution_create_with_algorithm(start_ns, algorithm)
+        lib.cosim_algorithm_destroy(algorithm)  # the execution holds its own reference
+        if not execution:
+            raise LibcosimError(f"cannot create the execution: {_last_error(lib)}")
+    run = _Run()
+    try:
+        if "ssp" in spec:
+            index, variables = _ssp_slaves(lib, execution)
+        else:
+            index, variables = _add_slaves(lib, execution, spec["fmus"])
+            _set_initial_values(lib, execution, index, variables, spec["parameters"])
+            _connect(lib, execution, index, variables, spec["connections"])
+        data = _record(lib, execution, index, variables, spec, run)
     except BaseException:
-        if not stepped:
-            _destroy(lib, execution, observer)
+        if not run.stepped:
+            _destroy(lib, execution, run.observer)
         raise
-    _destroy(lib, execution, observer)
+    _destroy(lib, execution, run.observer)
+    return data
+
+
+class _Run:
+    """What the clean-up of :func:`_simulate` needs to know: the observer, and whether
+    a step was attempted."""
+
+    def __init__(self) -> None:
+        self.observer: int | None = None
+        self.stepped = False
+
+
+def _record(
+    lib: ctypes.CDLL,
+    execution: int,
+    index: Mapping[str, int],
+    variables: Mapping[str, Mapping[str, tuple[int, int, str]]],
+    spec: dict[str, Any],
+    run: _Run,
+) -> np.ndarray:
+    """Observe ``spec["observe"]``, step ``spec["n_steps"]`` times, return the samples."""
+    start_ns, step_ns, n_steps = spec["start_ns"], spec["step_ns"], spec["n_steps"]
+    chunk = max(1, min(_CHUNK, n_steps))
+    run.observer = lib.cosim_buffered_time_series_observer_create(chunk + 1)
+    if not run.observer or lib.cosim_execution_add_observer(execution, run.observer) != 0:
+        raise LibcosimError(f"cannot add a time-series observer: {_last_error(lib)}")
+    observed = _start_observing(lib, run.observer, index, variables, spec["observe"])
+    data = np.zeros(
+        n_steps + 1,
+        dtype=[("time", np.float64)] + [(name, dtype) for name, _, _, dtype in observed],
+    )
+    data["time"] = (start_ns + np.arange(n_steps + 1, dtype=np.int64) * step_ns) / 1e9
+    done = 0
+    while done < n_steps:
+        count = min(chunk, n_steps - done)
+        run.stepped = True
+        if lib.cosim_execution_step(execution, count) != 0:
+            raise _step_failure(lib, execution, list(index))
+        first = 0 if done == 0 else done + 1
+        _fetch(lib, run.observer, observed, data, first, done + count, start_ns, step_ns)
+        done += count
     return data
 
 
@@ -483,15 +607,38 @@ def _add_slaves(
         lib.cosim_local_slave_destroy(slave)  # the execution keeps the instance
         if slave_index < 0:
             raise LibcosimError(f"cannot add the slave: {reason}", block=name)
-        count = lib.cosim_slave_get_num_variables(execution, slave_index)
-        table = (_VariableDescription * max(count, 1))()
-        if count < 0 or lib.cosim_slave_get_variables(execution, slave_index, table, count) < 0:
-            raise LibcosimError(f"cannot read the variables: {_last_error(lib)}", block=name)
         index[name] = slave_index
-        variables[name] = {
-            d.name.decode(): (d.reference, d.type, _CAUSALITY_NAMES.get(d.causality, "?"))
-            for d in table[:count]
-        }
+        variables[name] = _slave_variables(lib, execution, slave_index, name)
+    return index, variables
+
+
+def _slave_variables(
+    lib: ctypes.CDLL, execution: int, slave_index: int, name: str
+) -> dict[str, tuple[int, int, str]]:
+    """``{variable: (vr, type, causality)}`` of one slave."""
+    count = lib.cosim_slave_get_num_variables(execution, slave_index)
+    table = (_VariableDescription * max(count, 1))()
+    if count < 0 or lib.cosim_slave_get_variables(execution, slave_index, table, count) < 0:
+        raise LibcosimError(f"cannot read the variables: {_last_error(lib)}", block=name)
+    return {
+        d.name.decode(): (d.reference, d.type, _CAUSALITY_NAMES.get(d.causality, "?"))
+        for d in table[:count]
+    }
+
+
+def _ssp_slaves(
+    lib: ctypes.CDLL, execution: int
+) -> tuple[dict[str, int], dict[str, dict[str, tuple[int, int, str]]]]:
+    """Slave index and variables of every component libcosim loaded from an SSP archive."""
+    count = lib.cosim_execution_get_num_slaves(execution)
+    infos = (_SlaveInfo * max(count, 1))()
+    if count < 0 or lib.cosim_execution_get_slave_infos(execution, infos, count) < 0:
+        raise LibcosimError(f"cannot list the SSP components: {_last_error(lib)}")
+    index = {info.name.decode(): info.index for info in infos[:count]}
+    variables = {
+        name: _slave_variables(lib, execution, slave_index, name)
+        for name, slave_index in index.items()
+    }
     return index, variables
 
 
@@ -682,6 +829,11 @@ def _run_isolated(spec: dict[str, Any]) -> np.ndarray:
     """Run :func:`_simulate` in a child process; turn its failures into exceptions."""
     outcome, payload, stderr = _run_child(spec)
     if outcome == "ok":
+        ignored = [line.strip() for line in stderr.splitlines() if _IGNORED_PARAMETER in line]
+        if "ssp" in spec and ignored:
+            raise LibcosimError(
+                f"libcosim ignored parameter value(s) of the SSP archive: {' | '.join(ignored)}"
+            )
         if stderr.strip():
             sys.stderr.write(stderr)
         return payload
@@ -689,7 +841,12 @@ def _run_isolated(spec: dict[str, Any]) -> np.ndarray:
         raise LibcosimError(**payload)
     if outcome == "failed":
         raise RuntimeError(f"the libcosim child process failed ({payload}): {_summary(stderr)}")
-    block = _culprit(spec) if len(spec["fmus"]) > 1 else next(iter(spec["fmus"]), None)
+    if "ssp" in spec:
+        block = None
+    elif len(spec["fmus"]) > 1:
+        block = _culprit(spec)
+    else:
+        block = next(iter(spec["fmus"]), None)
     raise LibcosimError(
         f"libcosim aborted the process ({payload}), which it does when an FMU fails during "
         f"initialisation: {_summary(stderr)}",
@@ -705,6 +862,8 @@ def _run_child(spec: dict[str, Any]) -> tuple[str, Any, str]:
     tuple
         ``(outcome, payload, stderr)``: ``("ok", data, ...)``, ``("refused", error
         arguments, ...)``, ``("aborted", signal, ...)`` or ``("failed", exit code, ...)``.
+        For an SSP run that succeeded, the last item is the child's stdout (where
+        libcosim logs its warnings) followed by its stderr.
     """
     with tempfile.TemporaryDirectory(prefix="ins_cosim_libcosim_") as tmp:
         work = Path(tmp)
@@ -722,7 +881,10 @@ def _run_child(spec: dict[str, Any]) -> tuple[str, Any, str]:
             check=False,
         )
         if (work / "result.npy").is_file():
-            return "ok", np.load(work / "result.npy", allow_pickle=False), proc.stderr
+            # libcosim's console log (its warnings) goes to stdout: the SSP loader's
+            # skipped parameter values are only visible there
+            log = proc.stdout + proc.stderr if "ssp" in spec else proc.stderr
+            return "ok", np.load(work / "result.npy", allow_pickle=False), log
         if proc.returncode == _EXIT_REFUSED and (work / "error.json").is_file():
             return "refused", json.loads((work / "error.json").read_text()), proc.stderr
     if proc.returncode < 0:

@@ -17,6 +17,7 @@ Format (README, "Scenario files", is the user's reference)::
     # class = "package.module:ClassName"
     rate = 1                    # steps every k-th macro step
     parameters = { tau = "300 s", sigma = "2 arcmin", seed = 1 }
+    # rename = { "vendor_name" = "our_name[1]" }   # expose FMU variables under our names
 
     connections = ["flexure.x -> sensor.u"]   # vectors expand: a.v -> b.w wires [1]..[n]
 
@@ -42,10 +43,10 @@ from typing import Any
 from cosim.blocks import REAL, BlockHost, FmuHost, InProcessHost, Variable
 from cosim.errors import FmuError, ScenarioError, UnitError
 from cosim.master import GAUSS_SEIDEL, JACOBI, Connection, MasterSettings, System
-from cosim.units import conversion_factor, to_unit
+from cosim.units import conversion_factor, resolve_unit, to_unit
 
 TOP_KEYS = {"scenario", "master", "blocks", "connections", "output", "requirements", "campaign"}
-BLOCK_KEYS = {"model", "fmu", "class", "rate", "parameters", "description"}
+BLOCK_KEYS = {"model", "fmu", "class", "rate", "parameters", "description", "rename"}
 MASTER_KEYS = {"step", "stop", "start", "coupling"}
 OUTPUT_KEYS = {"variables", "every"}
 _LINK = re.compile(r"^\s*(\w+)\.([\w\[\]]+)\s*->\s*(\w+)\.([\w\[\]]+)\s*$")
@@ -69,6 +70,8 @@ class BlockSpec:
         Steps every ``rate``-th macro step.
     parameters : dict
         Raw values as written (units not yet applied).
+    rename : dict
+        The block's own variable name -> the name the scenario uses (``rename`` table).
     """
 
     name: str
@@ -76,6 +79,7 @@ class BlockSpec:
     source: str
     rate: int = 1
     parameters: dict[str, Any] = field(default_factory=dict)
+    rename: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass
@@ -171,6 +175,16 @@ class Scenario:
 
     # ----------------------------------------------------------------- blocks
     def _host(self, spec: BlockSpec) -> BlockHost:
+        host = self._new_host(spec)
+        if spec.rename:
+            try:
+                host.rename(spec.rename)
+            except FmuError as exc:
+                host.terminate()
+                raise self.error(str(exc), key=f"blocks.{spec.name}.rename") from exc
+        return host
+
+    def _new_host(self, spec: BlockSpec) -> BlockHost:
         key = f"blocks.{spec.name}"
         if spec.kind == "fmu":
             try:
@@ -179,9 +193,13 @@ class Scenario:
                 raise self.error(str(exc), key=f"{key}.fmu") from exc
         if spec.kind == "model":
             import models
+
+            known = models.registry()
+            if spec.source in known:  # truth models first: filters are imported only if needed
+                return InProcessHost(spec.name, known[spec.source])
             from cosim import alignment
 
-            known = {**models.registry(), **alignment.registry()}
+            known = {**known, **alignment.registry()}
             if spec.source not in known:
                 hint = difflib.get_close_matches(spec.source, known, n=1)
                 tip = f" Did you mean '{hint[0]}'?" if hint else ""
@@ -224,9 +242,11 @@ class Scenario:
                     key=key,
                 )
             try:
-                value = to_unit(raw, var0.unit) if var0.type == REAL else raw
+                value = to_unit(raw, var0.conversion_unit) if var0.type == REAL else raw
             except UnitError as exc:
-                raise self.error(f"{exc} (variable '{spec.name}.{pname}')", key=key) from exc
+                raise self.error(
+                    f"{exc.message} (variable '{spec.name}.{pname}'{_own(var0)})", key=key
+                ) from exc
             values = value if isinstance(value, list) else [value]
             if len(values) != len(scalars):
                 raise self.error(
@@ -286,11 +306,12 @@ class Scenario:
                 )
             for a, b in zip(src, dst, strict=True):
                 try:
-                    factor = conversion_factor(a.unit, b.unit)
+                    factor = conversion_factor(a.conversion_unit, b.conversion_unit)
                 except UnitError as exc:
                     raise self.error(
-                        f"'{text}': incompatible units: '{sb}.{a.name}' is in '{a.unit}' but "
-                        f"'{db}.{b.name}' expects '{b.unit}'",
+                        f"'{text}': incompatible units: '{sb}.{a.name}'{_own(a)} is in "
+                        f"'{a.unit}' but '{db}.{b.name}'{_own(b)} expects '{b.unit}' "
+                        f"({_why(exc, a, b)})",
                         key=key,
                     ) from exc
                 sink = f"{db}.{b.name}"
@@ -406,6 +427,7 @@ class Scenario:
                     "sha256": h.sha256,
                     "fmi_version": h.fmi_version,
                     "rate": self.blocks[name].rate,
+                    **({"rename": self.blocks[name].rename} if self.blocks[name].rename else {}),
                 }
                 for name, h in hosts.items()
             },
@@ -414,6 +436,22 @@ class Scenario:
             "units": units,
             "software": provenance.versions(),
         }
+
+
+def _why(exc: UnitError, a: Variable, b: Variable) -> str:
+    """Why two units do not convert: their SI dimensions, or the parser's message."""
+    try:
+        ua, ub = resolve_unit(a.conversion_unit), resolve_unit(b.conversion_unit)
+    except UnitError:
+        return exc.message
+    if ua.compatible(ub):
+        return exc.message
+    return f"dimensions {ua.si_text()} and {ub.si_text()}"
+
+
+def _own(var: Variable) -> str:
+    """`` (FMU variable 'x')`` for a renamed variable, else nothing (for messages)."""
+    return f" (FMU variable '{var.fmu_name}')" if var.fmu_name else ""
 
 
 def _bases(names: list[str]) -> list[str]:
@@ -559,7 +597,17 @@ def load_scenario(path: str | Path) -> Scenario:
             raise ScenarioError(
                 f"expected a table, got {params!r}", file=f, key=f"{key}.parameters"
             )
-        blocks[name] = BlockSpec(name, kind, source, rate, dict(params))
+        rename = table.get("rename", {})
+        if not isinstance(rename, dict) or not all(
+            isinstance(k, str) and isinstance(v, str) for k, v in rename.items()
+        ):
+            raise ScenarioError(
+                f"expected a table of strings such as {{ gyro_x = 'dtheta_meas_b[1]' }} "
+                f"(FMU name = scenario name), got {rename!r}",
+                file=f,
+                key=f"{key}.rename",
+            )
+        blocks[name] = BlockSpec(name, kind, source, rate, dict(params), dict(rename))
     connections = doc.get("connections", [])
     if not isinstance(connections, list):
         raise ScenarioError(

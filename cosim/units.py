@@ -16,12 +16,26 @@ written        meaning                                why it needs care
 
 Angles: pint treats the radian as dimensionless; here the angle exponent is checked
 as well, so ``deg/h`` converts to ``rad/s`` but not to ``1/s``.
+
+Units of FMU variables
+    An FMU names the unit of each Real variable and may define it in its model
+    description: ``<Unit name="degps"><BaseUnit rad="1" s="-1" factor="0.0174..."/></Unit>``
+    means ``value_SI = factor * value + offset`` with the SI base exponents given
+    (kg, m, s, A, K, mol, cd, rad). :func:`unit_from_fmi` turns such a definition into
+    a :class:`Unit`; when an FMU gives no ``BaseUnit`` (FMI exponents are integers, so
+    ``deg/sqrt(h)`` cannot be given one) the name is parsed as above. The definition,
+    when present, wins over the name: a vendor may call a unit anything.
+    A ``displayUnit`` is presentation only: values cross the FMI interface in the
+    variable's ``unit``, so display units never enter a conversion.
+    Affine units (a non-zero offset, e.g. degC) convert only to themselves: connections
+    scale by a factor, they never add an offset.
 """
 
 from __future__ import annotations
 
 import functools
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -54,15 +68,43 @@ class Unit:
         Multiply a value in this unit by ``factor`` to get SI (pint base units).
     dimension : tuple
         Sorted (dimension, exponent) pairs, the angle included as ``[angle]``.
+    offset : float
+        ``value_SI = factor * value + offset`` (non-zero only for affine units such as degC).
+    origin : str
+        ``"name"`` (parsed from the text) or ``"BaseUnit"`` (an FMU's unit definition).
     """
 
     text: str
     factor: float
     dimension: tuple[tuple[str, float], ...]
+    offset: float = 0.0
+    origin: str = "name"
 
     def compatible(self, other: Unit) -> bool:
         """True when both units measure the same physical quantity."""
         return self.dimension == other.dimension
+
+    def si_text(self) -> str:
+        """The dimension in SI base units, e.g. ``"rad s^-1"`` (``"1"`` when dimensionless)."""
+        parts = []
+        for dim, exp in self.dimension:
+            symbol = _SYMBOL.get(dim, dim)
+            parts.append(symbol if exp == 1 else f"{symbol}^{exp:g}")
+        return " ".join(parts) or "1"
+
+
+#: FMI ``BaseUnit`` attribute -> pint dimension name (the angle kept apart, as above).
+FMI_BASE_UNITS = {
+    "kg": "[mass]",
+    "m": "[length]",
+    "s": "[time]",
+    "A": "[current]",
+    "K": "[temperature]",
+    "mol": "[substance]",
+    "cd": "[luminosity]",
+    "rad": "[angle]",
+}
+_SYMBOL = {dim: symbol for symbol, dim in FMI_BASE_UNITS.items()}
 
 
 def _normalise(text: str) -> str:
@@ -96,7 +138,9 @@ def parse_unit(text: str) -> Unit:
         If the unit is not known.
     """
     try:
-        q = _REG.Quantity(1.0, _normalise(text)).to_base_units()
+        normalised = _normalise(text)
+        q = _REG.Quantity(1.0, normalised).to_base_units()
+        zero = float(_REG.Quantity(0.0, normalised).to_base_units().magnitude)
     except Exception as exc:  # pint raises several unrelated types
         raise UnitError(
             f"unknown unit '{text}' (examples of valid units: rad, deg, arcmin, deg/h, "
@@ -106,27 +150,93 @@ def parse_unit(text: str) -> Unit:
     angle = dict(q.units._units).get("radian", 0.0)
     if angle:
         dims["[angle]"] = angle
-    return Unit(text, float(q.magnitude), tuple(sorted(dims.items())))
+    dimension = tuple(sorted((k, float(e)) for k, e in dims.items() if e))
+    return Unit(text, float(q.magnitude) - zero, dimension, offset=zero)
 
 
-def conversion_factor(from_unit: str, to_unit: str) -> float:
-    """Factor that converts a value in ``from_unit`` to ``to_unit``.
+def unit_from_fmi(
+    name: str, exponents: Mapping[str, float], factor: float = 1.0, offset: float = 0.0
+) -> Unit:
+    """A unit from an FMU's ``<Unit><BaseUnit .../></Unit>`` definition.
+
+    Parameters
+    ----------
+    name : str
+        The unit's name in the model description (any text: ``"degps"``, ``"deg/s"``).
+    exponents : mapping of str to number
+        ``BaseUnit`` exponents by attribute name (keys of :data:`FMI_BASE_UNITS`);
+        zero or missing exponents are ignored.
+    factor, offset : float
+        ``value_SI = factor * value + offset``.
+
+    Returns
+    -------
+    Unit
 
     Raises
     ------
     UnitError
-        If the two units have different dimensions (the message names both).
+        An exponent attribute that FMI does not define, or a factor that is not > 0.
     """
-    a, b = parse_unit(from_unit), parse_unit(to_unit)
+    dims = []
+    for key, exp in exponents.items():
+        if key not in FMI_BASE_UNITS:
+            raise UnitError(
+                f"unit '{name}': expected BaseUnit exponents among "
+                f"{', '.join(FMI_BASE_UNITS)}, got '{key}'"
+            )
+        if exp:
+            dims.append((FMI_BASE_UNITS[key], float(exp)))
+    if not factor > 0.0:
+        raise UnitError(f"unit '{name}': expected a BaseUnit factor > 0, got {factor!r}")
+    return Unit(name, float(factor), tuple(sorted(dims)), float(offset), origin="BaseUnit")
+
+
+def resolve_unit(unit: str | Unit) -> Unit:
+    """``unit`` itself when it is a :class:`Unit`, else :func:`parse_unit` of the text."""
+    return unit if isinstance(unit, Unit) else parse_unit(unit)
+
+
+def conversion_factor(from_unit: str | Unit, to_unit: str | Unit) -> float:
+    """Factor that converts a value in ``from_unit`` to ``to_unit``.
+
+    Parameters
+    ----------
+    from_unit, to_unit : str or Unit
+        Unit texts (parsed) or resolved units (e.g. from an FMU's unit definitions).
+
+    Returns
+    -------
+    float
+        ``value_in_to_unit = factor * value_in_from_unit``.
+
+    Raises
+    ------
+    UnitError
+        If the two units have different dimensions (the message names both, and their
+        dimensions in SI base units), or if one of them is affine and they differ.
+    """
+    a, b = resolve_unit(from_unit), resolve_unit(to_unit)
     if not a.compatible(b):
-        raise UnitError(f"unit '{from_unit}' cannot be converted to '{to_unit}'")
+        raise UnitError(
+            f"unit '{a.text}' cannot be converted to '{b.text}' "
+            f"(dimensions {a.si_text()} and {b.si_text()})"
+        )
+    if a.offset or b.offset:
+        if (a.factor, a.offset) == (b.factor, b.offset):
+            return 1.0
+        raise UnitError(
+            f"unit '{a.text}' cannot be converted to '{b.text}': one of them has an offset "
+            f"(affine units such as degC convert only to themselves; expected a unit "
+            f"without offset, got offsets {a.offset:g} and {b.offset:g})"
+        )
     return a.factor / b.factor
 
 
 _QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
 
 
-def to_unit(value: Any, unit: str) -> float | int | bool | list[float]:
+def to_unit(value: Any, unit: str | Unit) -> float | int | bool | list[float]:
     """Convert a scenario value to ``unit``.
 
     Parameters
@@ -134,8 +244,8 @@ def to_unit(value: Any, unit: str) -> float | int | bool | list[float]:
     value : number, bool, str, list or dict
         ``12.5`` (already in ``unit``), ``"12.5 deg"``, ``[1, 2, 3]``,
         ``["1 deg", "1 deg", "30 deg"]``, ``{value = [10, 10, 5], unit = "m"}``.
-    unit : str
-        The target unit (the variable's declared unit).
+    unit : str or Unit
+        The target unit (the variable's declared unit, or its resolved definition).
 
     Returns
     -------
@@ -173,6 +283,7 @@ def to_unit(value: Any, unit: str) -> float | int | bool | list[float]:
     raise UnitError(f"expected a number, a string like '12.5 deg' or a list, got {value!r}")
 
 
-def si(value: Any, unit: str) -> np.ndarray:
+def si(value: Any, unit: str | Unit) -> np.ndarray:
     """Convert a value in ``unit`` to SI base units (helper for tests and reports)."""
-    return np.asarray(value, dtype=float) * parse_unit(unit).factor
+    u = resolve_unit(unit)
+    return np.asarray(value, dtype=float) * u.factor + u.offset

@@ -35,6 +35,24 @@ def faulty_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return build_fmu(Faulty, out, extra_files=(TESTS / "testblocks.py",))
 
 
+@pytest.fixture(scope="session")
+def vendor_imu_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The C vendor IMU of ``fmus/vendor_example`` compiled into a binary FMU 2.0."""
+    from cosim.cbuild import build_c_fmu
+
+    out = tmp_path_factory.mktemp("vendor_imu")
+    return build_c_fmu(ROOT / "fmus" / "vendor_example", out / "VendorImu.fmu")
+
+
+@pytest.fixture(scope="session")
+def fmi3_ramp_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The FMI 3.0 co-simulation fixture ``tests/fixtures/fmi3_ramp`` compiled from C."""
+    from cosim.cbuild import build_c_fmu
+
+    out = tmp_path_factory.mktemp("fmi3_ramp")
+    return build_c_fmu(TESTS / "fixtures" / "fmi3_ramp", out / "Ramp.fmu")
+
+
 @dataclass
 class CliResult:
     code: int

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from models.block import Block, input_, output, parameter
 
 
@@ -90,3 +92,42 @@ class DegSource(Block):
 
     def step(self, t: float, h: float) -> None:
         self.y = 90.0
+
+
+class Converging(Block):
+    """Stand-in for an alignment filter: an error that decays from a random start.
+
+    ``error = e0 exp(-(t - t0) / tau) + noise w``, ``e0 ~ N(0, sigma0^2)`` and ``w ~ N(0, 1)``
+    drawn from ``seed``; ``sigma`` is the matching 1-sigma,
+    ``sqrt(sigma0^2 exp(-2 (t - t0) / tau) + noise^2)``. When ``seed == fail_seed`` the
+    block reports failure from ``fail_time`` on (for campaign tests).
+    """
+
+    variables = (
+        parameter("sigma0", 0.01, "rad"),
+        parameter("tau", 2.0, "s"),
+        parameter("noise", 1.0e-4, "rad"),
+        parameter("seed", 0),
+        parameter("fail_seed", -1),
+        parameter("fail_time", 1.0, "s"),
+        output("error", 0.0, "rad"),
+        output("sigma", 0.0, "rad"),
+    )
+
+    def initialize(self) -> None:
+        self._rng = np.random.default_rng(self.seed)
+        self._e0 = self.sigma0 * float(self._rng.standard_normal())
+        self._update(self.start_time)
+
+    def _update(self, t: float) -> None:
+        decay = math.exp(-(t - self.start_time) / self.tau)
+        self.error = self._e0 * decay + self.noise * float(self._rng.standard_normal())
+        self.sigma = math.sqrt((self.sigma0 * decay) ** 2 + self.noise**2)
+
+    def step(self, t: float, h: float) -> None:
+        self._update(t + h)
+
+    def do_step(self, current_time: float, step_size: float) -> bool:
+        self.step(current_time, step_size)
+        failing = self.seed == self.fail_seed and current_time + step_size > self.fail_time
+        return not failing

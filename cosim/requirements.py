@@ -1,0 +1,1087 @@
+"""Requirements: parsing ``[[requirements]]``, per-run criteria and campaign statistics.
+
+A requirement names a recorded **signal** (optionally ``minus`` a truth signal), a
+display **unit**, a **criterion** that turns one run's signal into one number (its
+*metric*) and a limit, and a campaign **statistic** that turns the metrics of all runs
+into a three-valued verdict: ``satisfied``, ``violated`` or ``undecided``.
+
+Criteria (``e(t)`` is the error in the display unit, ``t0`` the run's start time)::
+
+    bound      metric = max |e(t)| over from <= t <= until      pass: metric <= bound
+    value      metric = |e(at)| (linear interpolation)          pass: metric <= bound
+    settling   metric = first time after which |e| <= band      pass: metric <= within
+               until the end of the run, minus t0 [s]
+
+Statistics over the runs (README, "Verification and campaigns", has the theory)::
+
+    max            largest metric                          <= limit
+    rms            sqrt(mean(metric^2))                    <= limit
+    mean+<k>sigma  mean + k * std (ddof = 1)               <= limit
+    p<q>           Wilks upper tolerance bound of the q-th percentile, at `confidence`
+    pass_rate      Clopper-Pearson bound of P(metric <= limit) against `probability`
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import re
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cosim.errors import ScenarioError, UnitError
+from cosim.results import RunResult
+from cosim.units import conversion_factor, parse_unit, to_unit
+
+SATISFIED = "satisfied"
+VIOLATED = "violated"
+UNDECIDED = "undecided"
+VERDICTS = (SATISFIED, VIOLATED, UNDECIDED)
+
+CRITERIA = ("bound", "value", "settling")
+ON_FAILURE = ("undecided", "exclude", "fail")
+
+REQUIREMENT_KEYS = {
+    "id",
+    "text",
+    "signal",
+    "minus",
+    "sigma",
+    "unit",
+    "wrap",
+    "absolute",
+    "criterion",
+    "bound",
+    "from",
+    "until",
+    "at",
+    "band",
+    "within",
+    "statistic",
+    "probability",
+    "confidence",
+    "on_failure",
+}
+# Keys each criterion needs (beyond the common ones) and may use.
+_CRITERION_KEYS = {
+    "bound": ({"bound"}, {"bound", "from", "until", "absolute"}),
+    "value": ({"bound"}, {"bound", "at", "absolute"}),
+    "settling": ({"band", "within"}, {"band", "within"}),
+}
+_QUANTILE = re.compile(r"^p(\d+(?:\.\d+)?)$")
+_MEAN_K_SIGMA = re.compile(r"^mean\s*\+\s*(\d+(?:\.\d+)?)\s*\*?\s*sigma$")
+_DEFAULT_CONFIDENCE = 0.95
+
+
+@dataclass(frozen=True)
+class Requirement:
+    """One ``[[requirements]]`` table, resolved against the recorded columns.
+
+    Attributes
+    ----------
+    id : str
+        Unique identifier (``"REQ-HDG-01"``).
+    text : str
+        The requirement as written for people.
+    signal : str
+        Recorded column (``"sensor.m"``, ``"filter.att_error[3]"``).
+    minus : str or None
+        Column subtracted from ``signal`` (a truth signal), or None.
+    sigma : str or None
+        Column holding the filter's 1-sigma of the error (for the +/-3 sigma plot), or None.
+    unit : str
+        Display unit of the error, of ``bound`` and ``band``.
+    criterion : str
+        ``"bound"``, ``"value"`` or ``"settling"``.
+    limit : float
+        ``bound`` [unit] for bound/value, ``within`` [s] for settling.
+    band : float or None
+        Settling band [unit].
+    start : float or None
+        ``from``: beginning of the bound window [s] (None: the run's start).
+    until : float or None
+        End of the bound window [s] (None: the run's end).
+    at : float or None
+        Time of the value criterion [s] (None: the run's end).
+    absolute : bool
+        Bound ``|e|`` (True) or ``e`` from above (False).
+    wrap : bool
+        Wrap the error to (-180 deg, 180 deg] (angles only).
+    statistic : str
+        ``"max"``, ``"rms"``, ``"mean+ksigma"``, ``"quantile"`` or ``"pass_rate"``.
+    statistic_text : str
+        The statistic as written (``"p95"``, ``"mean+3sigma"``).
+    k : float or None
+        Factor of ``mean+ksigma``.
+    probability : float or None
+        Quantile level p (``p95`` -> 0.95) or the required pass rate.
+    confidence : float or None
+        Confidence of the Wilks or Clopper-Pearson bound.
+    on_failure : str
+        How failed runs count: ``"undecided"``, ``"exclude"`` or ``"fail"``.
+    factors : tuple of float
+        SI-to-display factors of (signal, minus, sigma) columns (1.0 when absent).
+    index : int
+        Position in the file (``requirements[index]``).
+    """
+
+    id: str
+    text: str
+    signal: str
+    minus: str | None
+    sigma: str | None
+    unit: str
+    criterion: str
+    limit: float
+    band: float | None = None
+    start: float | None = None
+    until: float | None = None
+    at: float | None = None
+    absolute: bool = True
+    wrap: bool = False
+    statistic: str = "max"
+    statistic_text: str = "max"
+    k: float | None = None
+    probability: float | None = None
+    confidence: float | None = None
+    on_failure: str = "undecided"
+    factors: tuple[float, float, float] = (1.0, 1.0, 1.0)
+    index: int = 0
+
+    @property
+    def metric_unit(self) -> str:
+        """Unit of the per-run metric: ``"s"`` for settling, else the display unit."""
+        return "s" if self.criterion == "settling" else self.unit
+
+    def describe(self) -> str:
+        """The per-run criterion in words, e.g. ``"|e| <= 1.2 arcmin for t >= 10 s"``."""
+        e = "|e|" if self.absolute else "e"
+        if self.criterion == "bound":
+            lo = f"t >= {self.start:g} s" if self.start is not None else ""
+            hi = f"t <= {self.until:g} s" if self.until is not None else ""
+            when = " and ".join(x for x in (lo, hi) if x) or "the whole run"
+            return f"{e} <= {self.limit:g} {self.unit} for {when}"
+        if self.criterion == "value":
+            at = f"t = {self.at:g} s" if self.at is not None else "the end of the run"
+            return f"{e} <= {self.limit:g} {self.unit} at {at}"
+        return f"|e| settles within {self.band:g} {self.unit} in <= {self.limit:g} s"
+
+    def describe_statistic(self) -> str:
+        """The campaign statistic in words, e.g. ``"p95, Wilks bound at 95 % confidence"``."""
+        if self.statistic == "quantile":
+            return f"{self.statistic_text}, Wilks bound at {100 * self.confidence:g} % confidence"
+        if self.statistic == "pass_rate":
+            return (
+                f"pass rate >= {100 * self.probability:g} % (Clopper-Pearson, "
+                f"{100 * self.confidence:g} % confidence)"
+            )
+        return self.statistic_text
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data view for JSON reports."""
+        return {
+            "id": self.id,
+            "text": self.text,
+            "signal": self.signal,
+            "minus": self.minus,
+            "sigma": self.sigma,
+            "unit": self.unit,
+            "criterion": self.criterion,
+            "criterion_text": self.describe(),
+            "limit": self.limit,
+            "limit_unit": self.metric_unit,
+            "band": self.band,
+            "from": self.start,
+            "until": self.until,
+            "at": self.at,
+            "absolute": self.absolute,
+            "wrap": self.wrap,
+            "statistic": self.statistic_text,
+            "statistic_text": self.describe_statistic(),
+            "probability": self.probability,
+            "confidence": self.confidence,
+            "on_failure": self.on_failure,
+        }
+
+
+@dataclass(frozen=True)
+class RunMetric:
+    """One run's result for one requirement.
+
+    Attributes
+    ----------
+    value : float
+        The metric (display unit, or s for settling); ``inf`` when never settled,
+        ``nan`` when undecided.
+    passed : bool or None
+        ``value <= limit``; None when the run cannot decide (too short).
+    note : str
+        Why the run is undecided or failed, else empty.
+    """
+
+    value: float
+    passed: bool | None
+    note: str = ""
+
+
+@dataclass
+class Verdict:
+    """A requirement's campaign verdict.
+
+    Attributes
+    ----------
+    id : str
+        Requirement id.
+    verdict : str
+        ``"satisfied"``, ``"violated"`` or ``"undecided"``.
+    value : float
+        The statistic compared with the limit (nan when none could be computed); for
+        ``pass_rate`` the observed pass fraction.
+    limit : float
+        The limit the statistic is compared with (``probability`` for pass_rate).
+    unit : str
+        Unit of ``value`` and ``limit`` (``"1"`` for pass_rate).
+    reason : str
+        One sentence: the numbers behind the verdict.
+    n_runs, n_used, n_failed, n_pass : int
+        Runs in the campaign, runs the verdict is based on, failed runs, runs whose
+        metric met the limit.
+    interval : tuple of float or None
+        (lower, upper) confidence bounds (quantile or pass rate), when computed.
+    details : dict
+        Further numbers (sample quantile, order-statistic ranks, runs needed, ...).
+    statistic : str
+        The requirement's statistic (``"max"``, ..., ``"pass_rate"``).
+    """
+
+    id: str
+    verdict: str
+    value: float
+    limit: float
+    unit: str
+    reason: str
+    n_runs: int = 0
+    n_used: int = 0
+    n_failed: int = 0
+    n_pass: int = 0
+    interval: tuple[float, float] | None = None
+    details: dict[str, Any] = field(default_factory=dict)
+    statistic: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """Plain-data view for JSON reports (non-finite numbers as strings)."""
+        return {
+            "id": self.id,
+            "verdict": self.verdict,
+            "value": _finite_or_text(self.value),
+            "limit": self.limit,
+            "unit": self.unit,
+            "reason": self.reason,
+            "n_runs": self.n_runs,
+            "n_used": self.n_used,
+            "n_failed": self.n_failed,
+            "n_pass": self.n_pass,
+            "interval": None
+            if self.interval is None
+            else [_finite_or_text(x) for x in self.interval],
+            "details": {k: _finite_or_text(v) for k, v in self.details.items()},
+            "statistic": self.statistic,
+        }
+
+
+def _finite_or_text(x: Any) -> Any:
+    if isinstance(x, float) and not math.isfinite(x):
+        return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
+    return x
+
+
+# --------------------------------------------------------------------------- parsing
+def load_requirements(
+    tables: Any,
+    units: Mapping[str, Any],
+    file: str,
+    outputs: Sequence[str] = (),
+    on_failure: str = "undecided",
+) -> list[Requirement]:
+    """Parse and check the ``[[requirements]]`` tables of a scenario.
+
+    Parameters
+    ----------
+    tables : list of dict
+        ``scenario.raw.get("requirements", [])``.
+    units : mapping
+        Recorded column -> its unit: a unit string (``metadata["units"]`` of a built
+        scenario) or a resolved unit object (an FMU's own unit definition).
+    file : str
+        The scenario file (for error messages).
+    outputs : sequence of str
+        Every Real output of the system (recorded or not), to tell "not recorded"
+        from "unknown".
+    on_failure : str
+        Default for requirements without ``on_failure`` (from ``[campaign]``).
+
+    Returns
+    -------
+    list of Requirement
+        In file order.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file and the key (``requirements[i].key``) and how to fix it.
+    """
+    if not isinstance(tables, list) or not all(isinstance(t, dict) for t in tables):
+        raise ScenarioError(
+            "expected an array of tables: write each requirement under its own "
+            "[[requirements]] header",
+            file=file,
+            key="requirements",
+        )
+    out: list[Requirement] = []
+    seen: dict[str, int] = {}
+    for i, table in enumerate(tables):
+        req = _parse_one(table, i, units, file, outputs, on_failure)
+        if req.id in seen:
+            raise ScenarioError(
+                f"requirement id '{req.id}' is used twice (requirements[{seen[req.id]}] and "
+                f"requirements[{i}]); ids must be unique",
+                file=file,
+                key=f"requirements[{i}].id",
+            )
+        seen[req.id] = i
+        out.append(req)
+    return out
+
+
+def _parse_one(
+    table: dict[str, Any],
+    i: int,
+    units: Mapping[str, Any],
+    file: str,
+    outputs: Sequence[str],
+    default_on_failure: str,
+) -> Requirement:
+    where = f"requirements[{i}]"
+
+    def err(message: str, key: str | None = None) -> ScenarioError:
+        rid = table.get("id")
+        label = f"requirement '{rid}': " if isinstance(rid, str) else ""
+        return ScenarioError(label + message, file=file, key=f"{where}.{key}" if key else where)
+
+    for k in table:
+        if k not in REQUIREMENT_KEYS:
+            hint = difflib.get_close_matches(k, REQUIREMENT_KEYS, n=1)
+            tip = f" Did you mean '{hint[0]}'?" if hint else ""
+            raise err(f"unknown key '{k}'.{tip} Allowed: {', '.join(sorted(REQUIREMENT_KEYS))}", k)
+    for k in ("id", "signal", "criterion"):
+        if k not in table:
+            raise err(f"missing '{k}'", k)
+    rid = table["id"]
+    if not isinstance(rid, str) or not rid.strip():
+        raise err(f"expected a non-empty string, got {rid!r}", "id")
+    text = table.get("text", "")
+    if not isinstance(text, str):
+        raise err(f"expected a string, got {text!r}", "text")
+
+    criterion = table["criterion"]
+    if criterion not in CRITERIA:
+        hint = difflib.get_close_matches(str(criterion), CRITERIA, n=1)
+        tip = f" Did you mean '{hint[0]}'?" if hint else ""
+        raise err(
+            f"unknown criterion {criterion!r}.{tip} Use 'bound' (|e| <= bound from a time on), "
+            f"'settling' (settles within a band in a time) or 'value' (|e| <= bound at a time)",
+            "criterion",
+        )
+    needed, allowed = _CRITERION_KEYS[criterion]
+    for k in needed:
+        if k not in table:
+            raise err(f"criterion '{criterion}' needs '{k}'", k)
+    for k in set(_CRITERION_KEYS["bound"][1] | _CRITERION_KEYS["value"][1] | {"band", "within"}):
+        if k in table and k not in allowed:
+            raise err(
+                f"'{k}' does not apply to criterion '{criterion}' (it takes: "
+                f"{', '.join(sorted(allowed))})",
+                k,
+            )
+
+    # -- signals --------------------------------------------------------------
+    signal = _column(table, "signal", units, outputs, err)
+    minus = _column(table, "minus", units, outputs, err) if "minus" in table else None
+    sigma = _column(table, "sigma", units, outputs, err) if "sigma" in table else None
+    unit = table.get("unit", _unit_text(units[signal]))
+    if not isinstance(unit, str):
+        raise err(f"expected a unit string such as 'arcmin', got {unit!r}", "unit")
+    try:
+        parse_unit(unit)
+    except UnitError as exc:
+        raise err(str(exc), "unit") from exc
+
+    def factor(column: str | None, key: str) -> float:
+        if column is None:
+            return 1.0
+        try:
+            return conversion_factor(units[column], unit)
+        except UnitError as exc:
+            raise err(
+                f"'{column}' is in '{_unit_text(units[column])}', which cannot be shown in "
+                f"'{unit}'; "
+                f"give a unit of the same kind",
+                "unit" if key == "signal" else key,
+            ) from exc
+
+    factors = (factor(signal, "signal"), factor(minus, "minus"), factor(sigma, "sigma"))
+    wrap = _bool(table, "wrap", False, err)
+    if wrap:
+        try:
+            conversion_factor(unit, "rad")
+        except UnitError as exc:
+            raise err(f"wrap = true needs an angle unit, not '{unit}'", "wrap") from exc
+
+    # -- criterion values -----------------------------------------------------
+    def quantity(key: str, target: str) -> float:
+        raw = table[key]
+        try:
+            value = to_unit(raw, target)
+        except UnitError as exc:
+            raise err(f"{exc}", key) from exc
+        if isinstance(value, (bool, list)) or not math.isfinite(float(value)):
+            raise err(f"expected one number with a unit, e.g. '5 {target}', got {raw!r}", key)
+        return float(value)
+
+    def time(key: str) -> float | None:
+        return quantity(key, "s") if key in table else None
+
+    band = None
+    if criterion == "settling":
+        band = quantity("band", unit)
+        limit = quantity("within", "s")
+        if band <= 0:
+            raise err(f"the band must be > 0, got {table['band']!r}", "band")
+        if limit < 0:
+            raise err(f"expected a duration >= 0 s, got {table['within']!r}", "within")
+    else:
+        limit = quantity("bound", unit)
+    start, until, at = time("from"), time("until"), time("at")
+    if start is not None and until is not None and until < start:
+        raise err(f"'until' ({until:g} s) is before 'from' ({start:g} s)", "until")
+    absolute = _bool(table, "absolute", True, err)
+
+    # -- statistic ------------------------------------------------------------
+    stat_text = table.get("statistic", "max")
+    if not isinstance(stat_text, str):
+        raise err(f"expected a string such as 'max' or 'p95', got {stat_text!r}", "statistic")
+    stat = stat_text.strip().lower().replace(" ", "")
+    k = probability = confidence = None
+    if stat in ("max", "rms"):
+        statistic = stat
+    elif m := _MEAN_K_SIGMA.match(stat):
+        statistic, k = "mean+ksigma", float(m.group(1))
+    elif m := _QUANTILE.match(stat):
+        statistic, probability = "quantile", float(m.group(1)) / 100.0
+        if not 0.0 < probability < 1.0:
+            raise err(f"a percentile must be between p0 and p100, got {stat_text!r}", "statistic")
+    elif stat in ("pass_rate", "passrate", "pass-rate"):
+        statistic = "pass_rate"
+        if "probability" not in table:
+            raise err("statistic 'pass_rate' needs 'probability' (e.g. 0.99)", "probability")
+    else:
+        raise err(
+            f"unknown statistic {stat_text!r}; use 'max', 'rms', 'mean+3sigma' (any k), "
+            f"'p95' (any percentile, Wilks) or 'pass_rate' (Clopper-Pearson)",
+            "statistic",
+        )
+    if "probability" in table:
+        if statistic != "pass_rate":
+            raise err("'probability' goes with statistic = 'pass_rate'", "probability")
+        probability = _fraction(table, "probability", err)
+    if statistic in ("quantile", "pass_rate"):
+        confidence = (
+            _fraction(table, "confidence", err) if "confidence" in table else _DEFAULT_CONFIDENCE
+        )
+    elif "confidence" in table:
+        raise err(
+            f"'confidence' goes with a percentile ('p95') or 'pass_rate', not '{stat_text}'",
+            "confidence",
+        )
+    on_failure = table.get("on_failure", default_on_failure)
+    if on_failure not in ON_FAILURE:
+        raise err(
+            f"expected one of {', '.join(repr(x) for x in ON_FAILURE)}, got {on_failure!r}",
+            "on_failure",
+        )
+    return Requirement(
+        id=rid.strip(),
+        text=text,
+        signal=signal,
+        minus=minus,
+        sigma=sigma,
+        unit=unit,
+        criterion=criterion,
+        limit=limit,
+        band=band,
+        start=start,
+        until=until,
+        at=at,
+        absolute=absolute,
+        wrap=wrap,
+        statistic=statistic,
+        statistic_text=stat_text.strip(),
+        k=k,
+        probability=probability,
+        confidence=confidence,
+        on_failure=on_failure,
+        factors=factors,
+        index=i,
+    )
+
+
+def _column(table: dict[str, Any], key: str, units: Mapping[str, Any], outputs, err) -> str:  # noqa: ANN001
+    name = table[key]
+    if not isinstance(name, str):
+        raise err(f"expected a recorded variable such as 'sensor.m', got {name!r}", key)
+    name = name.strip()
+    if name in units and name != "time":
+        return name
+    elements = sorted(c for c in units if c.startswith(f"{name}["))
+    if elements:
+        raise err(
+            f"'{name}' is a vector; name one element, e.g. '{elements[0]}'",
+            key,
+        )
+    if name in outputs or any(o.startswith(f"{name}[") for o in outputs):
+        raise err(
+            f"'{name}' is not recorded; add it (or its block) to output.variables",
+            key,
+        )
+    recorded = [c for c in units if c != "time"]
+    hint = difflib.get_close_matches(name, recorded, n=1)
+    tip = f" Did you mean '{hint[0]}'?" if hint else ""
+    raise err(
+        f"unknown signal '{name}'.{tip} Recorded: {', '.join(recorded) or 'none'}",
+        key,
+    )
+
+
+def _unit_text(unit: Any) -> str:
+    """A unit's text: ``units`` values are unit strings or resolved unit objects."""
+    return str(getattr(unit, "text", unit))
+
+
+def _bool(table: dict[str, Any], key: str, default: bool, err) -> bool:  # noqa: ANN001
+    value = table.get(key, default)
+    if not isinstance(value, bool):
+        raise err(f"expected true or false, got {value!r}", key)
+    return value
+
+
+def _fraction(table: dict[str, Any], key: str, err) -> float:  # noqa: ANN001
+    value = table[key]
+    if isinstance(value, str) and value.strip().endswith("%"):
+        try:
+            value = float(value.strip()[:-1]) / 100.0
+        except ValueError:
+            pass
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < 1:
+        raise err(f"expected a fraction between 0 and 1 (e.g. 0.95 or '95 %'), got {value!r}", key)
+    return float(value)
+
+
+# --------------------------------------------------------------------------- one run
+def error_signal(
+    req: Requirement, result: RunResult
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """The requirement's error and 1-sigma over time, in the display unit.
+
+    Parameters
+    ----------
+    req : Requirement
+        The requirement.
+    result : RunResult
+        A run's recording (SI columns).
+
+    Returns
+    -------
+    t : ndarray, shape (n,)
+        Recorded times [s].
+    e : ndarray, shape (n,)
+        ``signal - minus`` [req.unit], wrapped to (-180 deg, 180 deg] if asked.
+    sigma : ndarray, shape (n,), or None
+        The ``sigma`` column [req.unit], or None when the requirement has none.
+    """
+    f_sig, f_minus, f_sigma = req.factors
+    e = np.asarray(result.data[req.signal], dtype=float) * f_sig
+    if req.minus is not None:
+        e = e - np.asarray(result.data[req.minus], dtype=float) * f_minus
+    if req.wrap:
+        half = math.pi * conversion_factor("rad", req.unit)
+        e = half - np.mod(half - e, 2.0 * half)
+    sigma = None
+    if req.sigma is not None:
+        sigma = np.asarray(result.data[req.sigma], dtype=float) * f_sigma
+    return np.asarray(result.time, dtype=float), e, sigma
+
+
+def evaluate(
+    req: Requirement, t: np.ndarray, e: np.ndarray, t_start: float, t_stop: float
+) -> RunMetric:
+    """One run's metric and pass/fail for one requirement.
+
+    Parameters
+    ----------
+    req : Requirement
+        The requirement.
+    t : ndarray, shape (n,)
+        Recorded times [s], increasing.
+    e : ndarray, shape (n,)
+        Error [req.unit].
+    t_start : float
+        The run's start time t0 [s] (settling times are counted from it).
+    t_stop : float
+        The scenario's stop time [s] (the default ``at`` of a value criterion).
+
+    Returns
+    -------
+    RunMetric
+        ``passed`` is None (undecided) when the run is too short to judge.
+    """
+    t = np.asarray(t, dtype=float)
+    e = np.asarray(e, dtype=float)
+    if t.size == 0:
+        return RunMetric(math.nan, None, "nothing was recorded")
+    t_end = float(t[-1])
+    tol = 1e-9 * max(1.0, abs(t_end))
+    x = np.abs(e) if req.absolute else e
+    if req.criterion == "bound":
+        lo = t_start if req.start is None else req.start
+        if req.until is not None and t_end < req.until - tol:
+            return RunMetric(
+                math.nan, None, f"the run ends at {t_end:g} s, before until = {req.until:g} s"
+            )
+        hi = t_end if req.until is None else req.until
+        window = (t >= lo - tol) & (t <= hi + tol)
+        if not np.any(window):
+            return RunMetric(
+                math.nan,
+                None,
+                f"the run ends at {t_end:g} s, before the window starts at {lo:g} s",
+            )
+        value = float(np.max(x[window]))
+        return RunMetric(value, value <= req.limit)
+    if req.criterion == "value":
+        at = t_stop if req.at is None else req.at
+        if t_end < at - tol or at < t[0] - tol:
+            return RunMetric(
+                math.nan, None, f"no recording at t = {at:g} s (run: up to {t_end:g} s)"
+            )
+        value = float(np.interp(at, t, e))
+        value = abs(value) if req.absolute else value
+        return RunMetric(value, value <= req.limit)
+    # settling
+    duration = t_end - t_start
+    outside = np.flatnonzero(np.abs(e) > req.band)
+    if outside.size == 0:
+        settle = float(t[0] - t_start)
+    elif outside[-1] == t.size - 1:
+        settle = math.inf
+    else:
+        settle = float(t[outside[-1] + 1] - t_start)
+    if settle > req.limit and math.isfinite(settle):
+        return RunMetric(settle, False)
+    if duration < req.limit - tol:
+        return RunMetric(
+            math.nan,
+            None,
+            f"the run lasts {duration:g} s, less than the settling time allowed "
+            f"({req.limit:g} s): too short to settle",
+        )
+    if math.isinf(settle):
+        return RunMetric(settle, False, "still outside the band at the end of the run")
+    return RunMetric(settle, True)
+
+
+# ------------------------------------------------------------------------- statistics
+def wilks_upper_rank(n: int, p: float, confidence: float) -> int | None:
+    """Rank of the order statistic that is an upper tolerance bound (Wilks).
+
+    The r-th smallest of n independent samples, X_(r), exceeds the p-quantile x_p of a
+    continuous distribution unless at least r samples fall below x_p, so
+    ``P(X_(r) >= x_p) = P(B <= r - 1)`` with ``B ~ Binomial(n, p)``. The smallest r with
+    ``P >= confidence`` gives the tightest bound; r = n (the sample maximum) needs
+    ``1 - p**n >= confidence`` (59 runs at 95 %/95 %).
+
+    Parameters
+    ----------
+    n : int
+        Number of samples.
+    p : float
+        Quantile level (coverage), 0 < p < 1.
+    confidence : float
+        Confidence level, 0 < confidence < 1.
+
+    Returns
+    -------
+    int or None
+        Rank r (1 = smallest, n = largest), or None when n samples are too few.
+    """
+    from scipy import stats  # imported here: campaign workers never need it
+
+    if n < 1:
+        return None
+    ranks = np.arange(1, n + 1)
+    ok = stats.binom.cdf(ranks - 1, n, p) >= confidence
+    return int(ranks[ok][0]) if ok.any() else None
+
+
+def wilks_lower_rank(n: int, p: float, confidence: float) -> int | None:
+    """Rank of the order statistic that is a lower confidence bound of the p-quantile.
+
+    ``P(X_(r) <= x_p) = P(B >= r)`` with ``B ~ Binomial(n, p)``; the largest r with
+    ``P >= confidence`` gives the tightest bound.
+
+    Parameters
+    ----------
+    n : int
+        Number of samples.
+    p : float
+        Quantile level, 0 < p < 1.
+    confidence : float
+        Confidence level, 0 < confidence < 1.
+
+    Returns
+    -------
+    int or None
+        Rank r (1 = smallest), or None when n samples are too few.
+    """
+    from scipy import stats
+
+    if n < 1:
+        return None
+    ranks = np.arange(1, n + 1)
+    ok = stats.binom.sf(ranks - 1, n, p) >= confidence
+    return int(ranks[ok][-1]) if ok.any() else None
+
+
+def wilks_min_runs(p: float, confidence: float) -> int:
+    """Fewest samples for which the maximum bounds the p-quantile at ``confidence``.
+
+    ``1 - p**n >= confidence``  <=>  ``n >= ln(1 - confidence) / ln(p)``.
+
+    Parameters
+    ----------
+    p : float
+        Quantile level, 0 < p < 1.
+    confidence : float
+        Confidence level, 0 < confidence < 1.
+
+    Returns
+    -------
+    int
+        The smallest such n (59 for 0.95/0.95, 45 for 0.95/0.90, 299 for 0.99/0.95).
+    """
+    n = max(1, math.ceil(math.log1p(-confidence) / math.log(p) - 1e-12))
+    while 1.0 - p**n < confidence:  # guard the ceil against rounding
+        n += 1
+    return n
+
+
+def wilks_upper_bound(values: Sequence[float], p: float, confidence: float) -> float | None:
+    """Wilks' one-sided upper tolerance bound of the p-quantile.
+
+    Parameters
+    ----------
+    values : sequence of float, shape (n,)
+        Independent samples.
+    p, confidence : float
+        Quantile level and confidence.
+
+    Returns
+    -------
+    float or None
+        The order statistic of rank :func:`wilks_upper_rank`, or None if too few samples.
+    """
+    x = np.sort(np.asarray(values, dtype=float))
+    r = wilks_upper_rank(x.size, p, confidence)
+    return None if r is None else float(x[r - 1])
+
+
+def clopper_pearson(k: int, n: int, confidence: float) -> tuple[float, float]:
+    """One-sided Clopper-Pearson bounds of a success probability.
+
+    With k successes in n trials, the lower bound L solves ``P(Bin(n, L) >= k) =
+    1 - confidence`` and the upper bound U solves ``P(Bin(n, U) <= k) = 1 - confidence``:
+    ``L = Beta.ppf(1 - confidence; k, n - k + 1)`` (0 when k = 0) and
+    ``U = Beta.ppf(confidence; k + 1, n - k)`` (1 when k = n). Each bound holds on its
+    own with probability >= ``confidence``.
+
+    Parameters
+    ----------
+    k : int
+        Successes (runs that met the limit), 0 <= k <= n.
+    n : int
+        Trials (runs), n >= 1.
+    confidence : float
+        Confidence of each one-sided bound.
+
+    Returns
+    -------
+    (float, float)
+        (L, U).
+    """
+    from scipy import stats
+
+    if n < 1 or not 0 <= k <= n:
+        raise ValueError(f"need 0 <= k <= n and n >= 1, got k = {k}, n = {n}")
+    lower = 0.0 if k == 0 else float(stats.beta.ppf(1.0 - confidence, k, n - k + 1))
+    upper = 1.0 if k == n else float(stats.beta.ppf(confidence, k + 1, n - k))
+    return lower, upper
+
+
+def judge(req: Requirement, metrics: Sequence[RunMetric | None]) -> Verdict:
+    """The campaign verdict of one requirement.
+
+    Parameters
+    ----------
+    req : Requirement
+        The requirement.
+    metrics : sequence of RunMetric or None, shape (n_runs,)
+        One per run in run order; None for a run that failed.
+
+    Returns
+    -------
+    Verdict
+        See the README ("Verdict rules"): a run too short to decide makes the verdict
+        undecided; failed runs follow ``req.on_failure``.
+    """
+    verdict = _judge(req, metrics)
+    verdict.statistic = req.statistic
+    return verdict
+
+
+def _judge(req: Requirement, metrics: Sequence[RunMetric | None]) -> Verdict:
+    """:func:`judge` without the statistic's name."""
+    n_runs = len(metrics)
+    failed = [i for i, m in enumerate(metrics) if m is None]
+    used: list[RunMetric] = []
+    for m in metrics:
+        if m is not None:
+            used.append(m)
+        elif req.on_failure == "fail":
+            used.append(RunMetric(math.inf, False, "run failed"))
+    base = {"n_runs": n_runs, "n_failed": len(failed)}
+    if not used:
+        return Verdict(
+            req.id,
+            UNDECIDED,
+            math.nan,
+            *_limit(req),
+            f"no completed run (all {n_runs} failed)" if n_runs else "no run",
+            n_used=0,
+            **base,
+        )
+    short = [m for m in used if m.passed is None]
+    if short:
+        return Verdict(
+            req.id,
+            UNDECIDED,
+            math.nan,
+            *_limit(req),
+            f"{len(short)} of {len(used)} runs cannot decide: {short[0].note}",
+            n_used=len(used),
+            **base,
+        )
+    verdict = _statistic(req, used)
+    verdict.n_runs, verdict.n_failed = n_runs, len(failed)
+    if failed and req.on_failure == "undecided":
+        runs = ", ".join(str(i) for i in failed[:10]) + (" ..." if len(failed) > 10 else "")
+        # Still violated if the failed runs could not have changed that: replace them by
+        # their most favourable outcome and judge again.
+        best = _best_case(req, used, len(failed))
+        if best is not None and best.verdict == VIOLATED:
+            verdict.reason += (
+                f" (violated whatever the {len(failed)} failed run(s) would have given: "
+                f"run(s) {runs})"
+            )
+            return verdict
+        verdict.details["judged_on_completed_runs"] = verdict.verdict
+        verdict.verdict = UNDECIDED
+        verdict.reason = (
+            f"{len(failed)} of {n_runs} runs failed (run(s) {runs}); on_failure = 'undecided'. "
+            f"On the {len(used)} completed runs: {verdict.reason}"
+        )
+    elif failed and req.on_failure == "exclude":
+        verdict.reason += f" ({len(failed)} failed run(s) excluded)"
+    elif failed:
+        verdict.reason += f" ({len(failed)} failed run(s) counted as failing)"
+    return verdict
+
+
+def _limit(req: Requirement) -> tuple[float, str]:
+    if req.statistic == "pass_rate":
+        return float(req.probability), "1"
+    return req.limit, req.metric_unit
+
+
+def _best_case(req: Requirement, used: list[RunMetric], n_failed: int) -> Verdict | None:
+    """The verdict if every failed run had given the most favourable metric."""
+    if req.statistic in ("max", "quantile", "pass_rate"):
+        best = -math.inf
+    elif req.statistic == "rms":
+        best = 0.0
+    else:  # mean + k sigma is not monotone in each sample
+        return None
+    return _statistic(req, used + [RunMetric(best, True)] * n_failed)
+
+
+def _fmt(x: float, unit: str) -> str:
+    if math.isinf(x):
+        return "not settled" if unit == "s" and x > 0 else f"{x}"
+    return f"{x:.4g} {unit}" if unit not in ("1", "") else f"{x:.4g}"
+
+
+def _statistic(req: Requirement, used: list[RunMetric]) -> Verdict:
+    values = np.array([m.value for m in used], dtype=float)
+    n = values.size
+    n_pass = int(sum(bool(m.passed) for m in used))
+    unit = req.metric_unit
+    lim = _fmt(req.limit, unit)
+    common = {"n_used": n, "n_pass": n_pass}
+    name = req.statistic_text
+
+    def decide(value: float, what: str) -> Verdict:
+        ok = value <= req.limit
+        sign = "<=" if ok else ">"
+        return Verdict(
+            req.id,
+            SATISFIED if ok else VIOLATED,
+            value,
+            req.limit,
+            unit,
+            f"{what} = {_fmt(value, unit)} {sign} {lim} over {n} run(s)",
+            **common,
+        )
+
+    if req.statistic == "max":
+        return decide(float(np.max(values)), "max")
+    if req.statistic == "rms":
+        with np.errstate(over="ignore"):
+            return decide(float(np.sqrt(np.mean(values**2))), "rms")
+    if req.statistic == "mean+ksigma":
+        if n < 2:
+            return Verdict(
+                req.id,
+                UNDECIDED,
+                math.nan,
+                req.limit,
+                unit,
+                f"{name} needs at least 2 runs, got {n}",
+                **common,
+            )
+        if np.any(np.isinf(values)):
+            value = math.inf
+        else:
+            value = float(np.mean(values) + req.k * np.std(values, ddof=1))
+        return decide(value, name)
+    if req.statistic == "quantile":
+        p, gamma = float(req.probability), float(req.confidence)
+        x = np.sort(values)
+        r_up = wilks_upper_rank(n, p, gamma)
+        r_lo = wilks_lower_rank(n, p, gamma)
+        upper = float(x[r_up - 1]) if r_up is not None else math.inf
+        lower = float(x[r_lo - 1]) if r_lo is not None else -math.inf
+        finite = x[np.isfinite(x)]
+        details = {
+            "sample_quantile": float(np.quantile(x, p)) if finite.size == n else math.nan,
+            "upper_rank": r_up,
+            "lower_rank": r_lo,
+            "runs_needed_for_max": wilks_min_runs(p, gamma),
+        }
+        conf = f"{100 * gamma:g} %"
+        if r_up is not None and upper <= req.limit:
+            verdict, value = SATISFIED, upper
+            reason = (
+                f"{name} upper bound ({conf} confidence, order statistic {r_up} of {n}) = "
+                f"{_fmt(upper, unit)} <= {lim}"
+            )
+        elif r_lo is not None and lower > req.limit:
+            verdict, value = VIOLATED, lower
+            reason = (
+                f"{name} lower bound ({conf} confidence, order statistic {r_lo} of {n}) = "
+                f"{_fmt(lower, unit)} > {lim}"
+            )
+        else:
+            verdict, value = UNDECIDED, upper
+            if r_up is None:
+                reason = (
+                    f"too few runs: a {conf} upper bound of the {name} needs at least "
+                    f"{details['runs_needed_for_max']} runs, got {n}"
+                )
+            else:
+                reason = (
+                    f"the {conf} confidence interval of the {name}, [{_fmt(lower, unit)}, "
+                    f"{_fmt(upper, unit)}], contains the bound {lim}: more runs needed"
+                )
+        return Verdict(
+            req.id,
+            verdict,
+            value,
+            req.limit,
+            unit,
+            reason,
+            interval=(lower, upper),
+            details=details,
+            **common,
+        )
+    # pass rate
+    p, gamma = float(req.probability), float(req.confidence)
+    lower, upper = clopper_pearson(n_pass, n, gamma)
+    rate = n_pass / n
+    conf = f"{100 * gamma:g} %"
+    observed = f"{n_pass}/{n} runs meet {lim}"
+    if lower >= p:
+        verdict = SATISFIED
+        reason = f"{observed}; {conf} lower bound of the pass rate {lower:.4f} >= {p:g}"
+    elif upper < p:
+        verdict = VIOLATED
+        reason = f"{observed}; {conf} upper bound of the pass rate {upper:.4f} < {p:g}"
+    else:
+        verdict = UNDECIDED
+        need = wilks_min_runs(p, gamma)
+        reason = (
+            f"{observed}; the pass rate's {conf} bounds [{lower:.4f}, {upper:.4f}] contain "
+            f"{p:g}: more runs needed (at least {need} runs, all passing)"
+        )
+    return Verdict(
+        req.id,
+        verdict,
+        rate,
+        p,
+        "1",
+        reason,
+        interval=(lower, upper),
+        details={"per_run_limit": req.limit, "per_run_unit": unit},
+        **common,
+    )
+
+
+def overall_exit_code(verdicts: Sequence[Verdict]) -> int:
+    """0 when every verdict is satisfied, 1 when any is violated, else 2 (undecided).
+
+    Parameters
+    ----------
+    verdicts : sequence of Verdict
+        The campaign's verdicts.
+
+    Returns
+    -------
+    int
+        The exit code of ``ins-cosim verify``.
+    """
+    kinds = {v.verdict for v in verdicts}
+    if VIOLATED in kinds:
+        return 1
+    if UNDECIDED in kinds or not verdicts:
+        return 2
+    return 0

@@ -1,0 +1,296 @@
+"""Export a scenario as an SSP 1.0 archive (System Structure and Parameterization).
+
+``ins-cosim export-ssp SCENARIO OUT.ssp`` writes a zip archive::
+
+    SystemStructure.ssd          the system: components, connections, parameters
+    resources/<Name>.fmu         every FMU the components use (one copy per file)
+
+``SystemStructure.ssd`` (namespace ``http://ssp-standard.org/SSP1/SystemStructureDescription``,
+validated against the SSP 1.0 schemas in the tests):
+
+- one ``ssd:Component`` per block, ``source="resources/<Name>.fmu"``,
+  ``implementation="CoSimulation"``, with an ``ssd:Connector`` for each of its inputs and
+  outputs, named as in the FMU (a block's rename map is undone: SSP tools see the FMU's
+  own names);
+- the block's parameters (and constant inputs) as an inline ``ssd:ParameterBindings`` /
+  ``ssd:ParameterValues`` / ``ssv:ParameterSet`` with exact values (shortest repr of the
+  double), already converted to the FMU's units, so a tool applies them as they are;
+- one ``ssd:Connection`` per scalar connection; a connection that converts units
+  carries an ``ssc:LinearTransformation`` with our factor and
+  ``suppressUnitConversion="true"`` (so a unit-aware tool does not convert twice);
+- ``ssd:DefaultExperiment`` with start and stop time and, as an annotation of type
+  ``com.opensimulationplatform``, ``osp:FixedStepAlgorithm baseStepSize`` (the macro
+  step); a block of rate k gets ``osp:StepSizeHint value = k * step`` (libcosim's way to
+  step it every k macro steps; equivalence with our master is tested for k = 1 only);
+- an annotation of type ``org.ins-cosim.scenario`` records the scenario file, its
+  sha256 and its coupling.
+
+SSP describes structure, not the master algorithm: libcosim runs the archive with its
+fixed-step Jacobi algorithm, which equals our master with ``coupling = "jacobi"``
+(tests/test_ssp.py). Built-in models are exported from the FMUs ``make fmus`` builds
+(``fmus/build/<Model>.fmu``); Python ``class = ...`` blocks cannot be exported.
+
+The prefixes ``ssd``, ``ssc``, ``ssv`` and ``osp`` are the ones the standard uses; keep
+them (libcosim's reader matches the prefixed element names).
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+from xml.etree import ElementTree as ET
+
+from cosim.blocks import BlockHost
+from cosim.errors import UserError
+from cosim.scenario import Scenario, load_scenario
+
+SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
+SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
+SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
+OSP = "http://opensimulationplatform.com/SSP/OSPAnnotations"
+INS = "urn:ins-cosim:ssp"
+for _prefix, _uri in (("ssd", SSD), ("ssc", SSC), ("ssv", SSV), ("osp", OSP), ("ic", INS)):
+    ET.register_namespace(_prefix, _uri)
+
+DEFAULT_FMU_DIR = Path("fmus/build")
+_TYPES = ("Real", "Integer", "Boolean", "String")
+
+
+class SspError(UserError):
+    """A scenario cannot be exported as SSP (a Python block, a missing FMU, ...)."""
+
+
+@dataclass
+class SspExport:
+    """What :func:`export_ssp` wrote.
+
+    Attributes
+    ----------
+    path : Path
+        The ``.ssp`` archive.
+    components : dict
+        Block name -> resource path inside the archive (``resources/<Name>.fmu``).
+    connections : int
+        Number of scalar connections.
+    parameters : int
+        Number of parameter values.
+    fmu_names : dict
+        Block name -> {scenario variable name -> FMU variable name} for renamed variables.
+    """
+
+    path: Path
+    components: dict[str, str]
+    connections: int
+    parameters: int
+    fmu_names: dict[str, dict[str, str]] = field(default_factory=dict)
+
+
+def _q(namespace: str, tag: str) -> str:
+    return f"{{{namespace}}}{tag}"
+
+
+def _number(value: float) -> str:
+    """Shortest text that reads back as the same double."""
+    return repr(float(value))
+
+
+def _parameter_value(parent: ET.Element, vtype: str, value: Any) -> None:
+    if vtype == "Real":
+        ET.SubElement(parent, _q(SSV, "Real"), value=_number(value))
+    elif vtype == "Integer":
+        ET.SubElement(parent, _q(SSV, "Integer"), value=str(int(value)))
+    elif vtype == "Boolean":
+        ET.SubElement(parent, _q(SSV, "Boolean"), value="true" if value else "false")
+    else:
+        ET.SubElement(parent, _q(SSV, "String"), value=str(value))
+
+
+def _osp_annotation(parent: ET.Element, tag: str, ns: str = SSD) -> ET.Element:
+    annotations = ET.SubElement(parent, _q(ns, "Annotations"))
+    annotation = ET.SubElement(
+        annotations, _q(SSC, "Annotation"), type="com.opensimulationplatform"
+    )
+    return ET.SubElement(annotation, _q(OSP, tag))
+
+
+def _component(
+    elements: ET.Element,
+    name: str,
+    host: BlockHost,
+    resource: str,
+    parameters: dict[str, Any],
+    step_hint: float | None,
+) -> None:
+    comp = ET.SubElement(
+        elements,
+        _q(SSD, "Component"),
+        name=name,
+        type="application/x-fmu-sharedlibrary",
+        source=resource,
+        implementation="CoSimulation",
+    )
+    ports = [
+        v
+        for v in host.variables.values()
+        if v.causality in ("input", "output") and v.type in _TYPES
+    ]
+    if ports:
+        connectors = ET.SubElement(comp, _q(SSD, "Connectors"))
+        for v in ports:
+            connector = ET.SubElement(
+                connectors, _q(SSD, "Connector"), name=v.own_name, kind=v.causality
+            )
+            ET.SubElement(connector, _q(SSC, v.type))
+    if parameters:
+        bindings = ET.SubElement(comp, _q(SSD, "ParameterBindings"))
+        binding = ET.SubElement(bindings, _q(SSD, "ParameterBinding"))
+        values = ET.SubElement(binding, _q(SSD, "ParameterValues"))
+        pset = ET.SubElement(values, _q(SSV, "ParameterSet"), version="1.0", name="parameters")
+        plist = ET.SubElement(pset, _q(SSV, "Parameters"))
+        for scalar, value in parameters.items():
+            var = host.variables[scalar]
+            parameter = ET.SubElement(plist, _q(SSV, "Parameter"), name=var.own_name)
+            _parameter_value(parameter, var.type, value)
+    if step_hint is not None:
+        _osp_annotation(comp, "StepSizeHint").set("value", _number(step_hint))
+
+
+def export_ssp(
+    scenario: Scenario | str | Path,
+    out: str | Path,
+    fmu_dir: str | Path = DEFAULT_FMU_DIR,
+) -> SspExport:
+    """Write a scenario's FMU blocks, connections and parameters as an SSP 1.0 archive.
+
+    Parameters
+    ----------
+    scenario : Scenario, str or Path
+        A loaded scenario or its TOML file (not modified).
+    out : str or Path
+        The ``.ssp`` file to write (its folder is created; replaced if it exists).
+    fmu_dir : str or Path
+        Where the FMUs of built-in models are (``make fmus`` builds ``fmus/build``).
+
+    Returns
+    -------
+    SspExport
+
+    Raises
+    ------
+    SspError
+        A ``class = ...`` block, or a built-in model whose FMU is not in ``fmu_dir``.
+    ScenarioError, FmuError
+        The scenario itself is inconsistent (as ``ins-cosim check`` reports).
+    """
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    fmu_dir = Path(fmu_dir)
+    for spec in sc.blocks.values():
+        if spec.kind == "class":
+            raise SspError(
+                f"block '{spec.name}' is a Python class ('{spec.source}'); SSP holds FMUs "
+                f"only: package it as an FMU and use fmu = '...'"
+            )
+        if spec.kind == "model" and not (fmu_dir / f"{spec.source}.fmu").is_file():
+            raise SspError(
+                f"block '{spec.name}' uses the built-in model '{spec.source}' but "
+                f"'{fmu_dir / (spec.source + '.fmu')}' does not exist; run `make fmus` "
+                f"(or give --fmu-dir)"
+            )
+    sc = copy.deepcopy(sc)
+    sc.use_fmus(fmu_dir)
+    system, _meta = sc.build()
+    try:
+        root, summary = _describe(sc, system)
+    finally:
+        for host in system.blocks.values():
+            host.terminate()
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    ET.indent(root, space="  ")
+    ssd = ET.tostring(root, encoding="utf-8", xml_declaration=True)
+    partial = out.with_name(out.name + ".part")
+    with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zf:
+        zf.writestr("SystemStructure.ssd", ssd)
+        for source, resource in sorted(summary.pop("files").items(), key=lambda kv: kv[1]):
+            zf.write(source, resource)
+    os.replace(partial, out)
+    return SspExport(path=out, **summary)
+
+
+def _describe(sc: Scenario, system: Any) -> tuple[ET.Element, dict[str, Any]]:
+    """The SSD tree and the export summary (``files``: FMU path -> resource name)."""
+    from cosim import provenance
+
+    s = sc.settings
+    tool = f"ins-cosim {provenance.versions().get('ins-cosim', '')}".strip()
+    root = ET.Element(_q(SSD, "SystemStructureDescription"), version="1.0", name=sc.name)
+    root.set("generationTool", tool)
+    system_el = ET.SubElement(
+        root, _q(SSD, "System"), name=sc.name, description=f"exported from {sc.path.name}"
+    )
+    elements = ET.SubElement(system_el, _q(SSD, "Elements"))
+    files: dict[str, str] = {}
+    components: dict[str, str] = {}
+    renamed: dict[str, dict[str, str]] = {}
+    n_parameters = 0
+    for name, host in system.blocks.items():
+        source = str(Path(sc.blocks[name].source).resolve())
+        if source not in files:
+            resource = f"resources/{Path(source).name}"
+            if resource in files.values():
+                resource = f"resources/{name}_{Path(source).name}"
+            files[source] = resource
+        components[name] = files[source]
+        params = system.parameters.get(name, {})
+        n_parameters += len(params)
+        rate = system.rates.get(name, 1)
+        _component(
+            elements, name, host, files[source], params, rate * s.step if rate != 1 else None
+        )
+        names = {v.name: v.fmu_name for v in host.variables.values() if v.fmu_name}
+        if names:
+            renamed[name] = names
+    if system.connections:
+        connections = ET.SubElement(system_el, _q(SSD, "Connections"))
+        for c in system.connections:
+            src = system.blocks[c.src_block].variables[c.src_var].own_name
+            dst = system.blocks[c.dst_block].variables[c.dst_var].own_name
+            link = ET.SubElement(
+                connections,
+                _q(SSD, "Connection"),
+                startElement=c.src_block,
+                startConnector=src,
+                endElement=c.dst_block,
+                endConnector=dst,
+            )
+            if c.factor != 1.0:
+                link.set("suppressUnitConversion", "true")
+                ET.SubElement(
+                    link, _q(SSC, "LinearTransformation"), factor=_number(c.factor), offset="0"
+                )
+    experiment = ET.SubElement(
+        root, _q(SSD, "DefaultExperiment"), startTime=_number(s.start), stopTime=_number(s.stop)
+    )
+    algorithm = _osp_annotation(experiment, "Algorithm")
+    ET.SubElement(algorithm, _q(OSP, "FixedStepAlgorithm"), baseStepSize=_number(s.step))
+    notes = ET.SubElement(root, _q(SSD, "Annotations"))
+    note = ET.SubElement(notes, _q(SSC, "Annotation"), type="org.ins-cosim.scenario")
+    ET.SubElement(
+        note,
+        _q(INS, "Scenario"),
+        file=str(sc.path),
+        sha256=sc.sha256,
+        coupling=s.coupling,
+    )
+    summary = {
+        "components": components,
+        "connections": len(system.connections),
+        "parameters": n_parameters,
+        "fmu_names": renamed,
+        "files": files,
+    }
+    return root, summary

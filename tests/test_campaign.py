@@ -1,0 +1,286 @@
+"""Campaigns with real runs: seeds, workers, Dask, failing runs, resume."""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from cosim.campaign import (
+    CampaignError,
+    WorkerSpec,
+    prepare,
+    read_records,
+    release_worker_state,
+    run_campaign,
+    run_one,
+    run_seeds,
+)
+from cosim.errors import ScenarioError
+from cosim.requirements import SATISFIED, UNDECIDED, VIOLATED
+
+TESTS = Path(__file__).resolve().parent
+ROOT = TESTS.parent
+DEMO = ROOT / "scenarios" / "demo_verify.toml"
+
+
+def rows(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="") as fh:
+        return list(csv.DictReader(fh))
+
+
+def assert_same_runs(a, b) -> None:
+    """Same seeds, status, metrics and histories, run by run (bit for bit)."""
+    assert len(a.records) == len(b.records)
+    for ra, rb in zip(a.records, b.records, strict=True):
+        assert (ra.index, ra.seeds, ra.status, ra.error) == (
+            rb.index,
+            rb.seeds,
+            rb.status,
+            rb.error,
+        )
+        assert ra.metrics == rb.metrics
+        assert sorted(ra.history) == sorted(rb.history)
+        for key in ra.history:
+            np.testing.assert_array_equal(ra.history[key], rb.history[key])
+
+
+@pytest.fixture(scope="module")
+def pool_campaign(tmp_path_factory: pytest.TempPathFactory):
+    """The demo verification campaign (20 runs) on 2 worker processes."""
+    return run_campaign(DEMO, tmp_path_factory.mktemp("pool"), workers=2, progress=False)
+
+
+def test_seeds_derive_from_the_campaign_seed_by_spawning() -> None:
+    blocks = ["flexure", "sensor"]
+    children = np.random.SeedSequence(2024).spawn(20)
+    for i in (0, 7, 19):
+        state = children[i].generate_state(2, dtype=np.uint32)
+        expected = {"flexure": int(state[0]) >> 1, "sensor": int(state[1]) >> 1}
+        assert run_seeds(2024, i, blocks) == expected
+    # A run's seeds do not depend on the number of runs, and fit an FMI Integer.
+    assert run_seeds(2024, 7, blocks) == {
+        b: int(s) >> 1
+        for b, s in zip(
+            blocks,
+            np.random.SeedSequence(2024).spawn(500)[7].generate_state(2, np.uint32),
+            strict=True,
+        )
+    }
+    seeds = [s for i in range(200) for s in run_seeds(1, i, blocks).values()]
+    assert len(set(seeds)) == len(seeds) and max(seeds) < 2**31
+
+
+def test_process_pool_equals_one_process_and_each_run_alone(pool_campaign, tmp_path) -> None:
+    serial = run_campaign(DEMO, tmp_path, workers=1, progress=False)
+    assert_same_runs(pool_campaign, serial)
+    assert (tmp_path / "metrics.csv").read_text() == (
+        pool_campaign.out_dir / "metrics.csv"
+    ).read_text()
+    # both worker processes did work, each having built the blocks once
+    assert len({r.worker for r in pool_campaign.records}) == 2
+    # seeds are the documented ones, and differ between runs
+    assert pool_campaign.records[7].seeds == run_seeds(2024, 7, ["flexure", "sensor"])
+    assert pool_campaign.records[0].seeds != pool_campaign.records[1].seeds
+    # any run reproduces alone, in a fresh worker state
+    prep = prepare(DEMO)
+    spec = WorkerSpec(str(DEMO), prep.scenario.sha256, None, tuple(prep.requirements), 400)
+    release_worker_state()
+    try:
+        alone = run_one(spec, 13, pool_campaign.records[13].seeds)
+    finally:
+        release_worker_state()
+    assert alone.metrics == pool_campaign.records[13].metrics
+    # the demo's verdicts (the scenario is chosen so that all are satisfied)
+    assert [v.verdict for v in pool_campaign.verdicts] == [SATISFIED] * 3
+    table = rows(pool_campaign.out_dir / "metrics.csv")
+    assert len(table) == 20 and table[0]["status"] == "completed"
+    assert float(table[0]["DEMO-1 [arcmin]"]) == pool_campaign.records[0].metrics["DEMO-1"].value
+
+
+def test_dask_local_cluster_gives_the_same_metrics(pool_campaign, tmp_path) -> None:
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(
+        n_workers=2,
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address=None,
+    ) as cluster:
+        campaign = run_campaign(DEMO, tmp_path, cluster=cluster.scheduler_address, progress=False)
+    assert campaign.execution["cluster"].startswith("tcp://127.0.0.1:")
+    assert_same_runs(pool_campaign, campaign)
+    assert (tmp_path / "metrics.csv").read_text() == (
+        pool_campaign.out_dir / "metrics.csv"
+    ).read_text()
+
+
+def failing_scenario(tmp_path: Path, fmu: Path, failing_run: int) -> Path:
+    fail_seed = run_seeds(5, failing_run, ["filter"])["filter"]
+    text = f"""
+[master]
+step = "10 ms"
+stop = "3 s"
+
+[blocks.filter]
+fmu = "{fmu}"
+
+[blocks.filter.parameters]
+sigma0 = "10 arcmin"
+tau = "0.5 s"
+noise = "0.05 arcmin"
+fail_seed = {fail_seed}
+fail_time = "1.5 s"
+
+[campaign]
+runs = 8
+seed = 5
+
+[[requirements]]
+id = "ALIGN-1"
+text = "settles within 1 arcmin in 2.5 s"
+signal = "filter.error"
+sigma = "filter.sigma"
+unit = "arcmin"
+criterion = "settling"
+band = "1 arcmin"
+within = "2.5 s"
+
+[[requirements]]
+id = "ALIGN-2"
+text = "within 1 arcmin from 2 s on, judged on the completed runs"
+signal = "filter.error"
+unit = "arcmin"
+criterion = "bound"
+bound = "1 arcmin"
+from = "2 s"
+on_failure = "exclude"
+
+[[requirements]]
+id = "ALIGN-3"
+text = "final error below 0.5 arcmin, a failed run counts as failing"
+signal = "filter.error"
+unit = "arcmin"
+criterion = "value"
+bound = "0.5 arcmin"
+on_failure = "fail"
+"""
+    path = tmp_path / "failing.toml"
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture(scope="module")
+def converging_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """``testblocks.Converging`` (a stand-in alignment filter) as an FMU."""
+    from testblocks import Converging
+
+    from cosim.packaging import build_fmu
+
+    out = tmp_path_factory.mktemp("converging")
+    return build_fmu(Converging, out, extra_files=(TESTS / "testblocks.py",))
+
+
+@pytest.mark.parametrize("workers", [2, 1])
+def test_a_failing_fmu_run_is_recorded_and_the_campaign_goes_on(
+    tmp_path: Path, converging_fmu: Path, workers: int
+) -> None:
+    scenario = failing_scenario(tmp_path, converging_fmu, failing_run=3)
+    campaign = run_campaign(scenario, tmp_path / "out", workers=workers, progress=False)
+    status = [r.status for r in campaign.records]
+    assert status == ["completed"] * 3 + ["failed"] + ["completed"] * 4
+    failed = campaign.records[3]
+    assert "block 'filter'" in failed.error and "doStep" in failed.error
+    assert "t = 1.5 s" in failed.error
+    assert failed.history["time"][-1] == pytest.approx(1.5)  # partial history kept
+    assert all(m is None for m in failed.metrics.values())
+    v1, v2, v3 = campaign.verdicts
+    # default: undecided, saying which run failed and what the completed runs show
+    assert v1.verdict == UNDECIDED and "run(s) 3" in v1.reason
+    assert v1.details["judged_on_completed_runs"] == SATISFIED
+    # exclude: judged on the 7 completed runs
+    assert v2.verdict == SATISFIED and (v2.n_used, v2.n_failed) == (7, 1)
+    # fail: the failed run fails the requirement
+    assert v3.verdict == VIOLATED
+    assert campaign.exit_code == 1
+    table = rows(tmp_path / "out" / "metrics.csv")
+    assert table[3]["status"] == "failed" and "doStep" in table[3]["error"]
+    assert table[3]["ALIGN-2 [arcmin]"] == "" and table[4]["ALIGN-2 pass"] == "1"
+    # the runs after the failure (same worker, blocks reset) match a clean run of them
+    clean = run_campaign(
+        failing_scenario(tmp_path, converging_fmu, failing_run=99),
+        tmp_path / "clean",
+        workers=1,
+        progress=False,
+    )
+    for i in (0, 4, 7):
+        assert clean.records[i].metrics == campaign.records[i].metrics
+
+
+def test_resume_runs_only_what_is_missing(tmp_path: Path) -> None:
+    first = run_campaign(DEMO, tmp_path, runs=6, workers=1, progress=False)
+    reference = (tmp_path / "metrics.csv").read_text()
+    for i in (2, 4):
+        (tmp_path / "runs" / f"run_{i:05d}.json").unlink()
+    (tmp_path / "runs" / ".run_00004.npz.tmp").write_bytes(b"half-written")
+    assert sorted(read_records(tmp_path / "runs")) == [0, 1, 3, 5]
+    resumed = run_campaign(DEMO, tmp_path, resume=True, workers=1, progress=False)
+    assert resumed.execution["runs_this_session"] == 2 and resumed.settings.runs == 6
+    assert (tmp_path / "metrics.csv").read_text() == reference
+    assert_same_runs(first, resumed)
+    assert not list((tmp_path / "runs").glob(".*.tmp"))
+    # --runs may grow a campaign: runs 0..5 are kept, 6..7 are new
+    grown = run_campaign(DEMO, tmp_path, runs=8, resume=True, workers=1, progress=False)
+    assert grown.execution["runs_this_session"] == 2
+    # refusing to mix campaigns
+    with pytest.raises(CampaignError, match="seed was 2024, now 1"):
+        run_campaign(DEMO, tmp_path, seed=1, resume=True, workers=1, progress=False)
+    with pytest.raises(CampaignError, match="can add runs, not remove"):
+        run_campaign(DEMO, tmp_path, runs=3, resume=True, workers=1, progress=False)
+    with pytest.raises(CampaignError, match="no campaign to resume"):
+        run_campaign(DEMO, tmp_path / "empty", resume=True, workers=1, progress=False)
+    # without --resume the folder starts over
+    again = run_campaign(DEMO, tmp_path, runs=2, workers=1, progress=False)
+    assert again.execution["runs_this_session"] == 2
+    assert sorted(read_records(tmp_path / "runs")) == [0, 1]
+
+
+def test_randomize_keeps_the_file_seed_of_other_blocks(tmp_path: Path) -> None:
+    text = DEMO.read_text().replace('randomize = ["flexure", "sensor"]', 'randomize = ["sensor"]')
+    path = tmp_path / "s.toml"
+    path.write_text(text)
+    campaign = run_campaign(path, tmp_path / "out", runs=3, workers=1, progress=False)
+    assert all(set(r.seeds) == {"sensor"} for r in campaign.records)
+    # the flexure truth is the same in every run (its file seed), the sensor noise is not
+    e = [r.history["e_0"] for r in campaign.records]
+    assert not np.array_equal(e[0], e[1])
+    assert campaign.provenance["file_seeds"]["flexure"] == 7
+
+
+@pytest.mark.parametrize(
+    "campaign_table, key, fragment",
+    [
+        ("runs = 0", "campaign.runs", "integer >= 1"),
+        ("seed = -1", "campaign.seed", "integer >= 0"),
+        ("rnus = 3", "campaign.rnus", "Did you mean 'runs'"),
+        ("randomize = ['sensr']", "campaign.randomize[0]", "no seed parameter"),
+        ("on_failure = 'skip'", "campaign.on_failure", "'exclude'"),
+    ],
+)
+def test_bad_campaign_table(tmp_path: Path, campaign_table: str, key: str, fragment: str) -> None:
+    text = DEMO.read_text()
+    start = text.index("[campaign]")
+    end = text.index("[[requirements]]")
+    path = tmp_path / "bad.toml"
+    path.write_text(text[:start] + f"[campaign]\n{campaign_table}\n\n" + text[end:])
+    with pytest.raises(ScenarioError) as info:
+        run_campaign(path, tmp_path / "out", workers=1, progress=False)
+    assert str(path) in str(info.value) and key in str(info.value)
+    assert fragment in str(info.value)
+
+
+def test_a_scenario_without_requirements_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(ScenarioError, match=r"key 'requirements'.*no requirements"):
+        run_campaign(ROOT / "scenarios" / "demo.toml", tmp_path, workers=1, progress=False)
