@@ -1,8 +1,9 @@
-"""Command line: ``ins-cosim run | check | fmus``.
+"""Command line: ``ins-cosim run | check | fmus | verify | check-fmu | export-ssp | reproduce``.
 
-A user's mistake (bad scenario, missing FMU, failing block) prints one message naming
-the file, key, block or variable, and exits non-zero without a traceback:
-3 for bad input, 4 for a run that stopped (its partial results are still written).
+A user's mistake (bad scenario, missing FMU, failing block, bad option) prints one
+message naming the file, key, block or variable, and exits non-zero without a traceback:
+3 for bad input, 4 for a run that stopped (its partial results are still written);
+``verify`` uses 1 and 2 for violated and undecided requirements.
 """
 
 from __future__ import annotations
@@ -27,7 +28,22 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     click.echo(f"warning: {message}", err=True)
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+class _Command(click.Command):
+    """Every command exits 3 on a usage error (``verify`` uses 1 and 2 for verdicts)."""
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        try:
+            return super().parse_args(ctx, args)
+        except click.UsageError as exc:
+            exc.exit_code = 3
+            raise
+
+
+class _Group(click.Group):
+    command_class = _Command
+
+
+@click.group(cls=_Group, context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(package_name="ins-cosim")
 def main() -> None:
     """Co-simulation workbench for the initial alignment of inertial navigation systems."""
@@ -162,18 +178,7 @@ def fmus(fmu_dir: Path, build: bool) -> None:
     sys.exit(1 if bad else 0)
 
 
-class _VerifyCommand(click.Command):
-    """``verify`` exits 3 on a usage error: its codes 1 and 2 are verdicts."""
-
-    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
-        try:
-            return super().parse_args(ctx, args)
-        except click.UsageError as exc:
-            exc.exit_code = 3
-            raise
-
-
-@main.command(cls=_VerifyCommand)
+@main.command()
 @click.argument("scenario", type=click.Path(path_type=Path))
 @click.option(
     "--report",
@@ -297,6 +302,43 @@ def export_ssp(scenario: Path, out: Path, fmu_dir: Path) -> None:
         f"scalar connections, {result.parameters} parameter values"
     )
     click.echo("SSP tools such as libcosim step it with Jacobi coupling (coupling = 'jacobi')")
+
+
+@main.command()
+@click.argument("paper", type=click.Choice(["seed000", "seed001", "seed003"]))
+@click.option(
+    "--out",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Folder for plots and tables (default out/reproduce/PAPER).",
+)
+@click.option("--runs", type=int, default=30, show_default=True, help="Monte Carlo runs.")
+@click.option("--seed", type=int, default=2026, show_default=True, help="Campaign seed.")
+@click.option(
+    "--update-readme",
+    is_flag=True,
+    help="Write the tables into README.md between the PAPER markers.",
+)
+def reproduce(paper: str, out: Path | None, runs: int, seed: int, update_readme: bool) -> None:
+    """Reproduce a source paper (shared/SEEDS.md): its tables next to ours, and plots."""
+    from cosim import reproduce as rep
+
+    out = out or Path("out") / "reproduce" / paper
+    try:
+        block = rep.reproduce(paper, out, runs, seed)
+    except UserError as exc:
+        _fail(exc)
+    (out / "tables.md").write_text(block)
+    click.echo(block)
+    click.echo(f"wrote {out / 'tables.md'} and the plots in {out}")
+    if update_readme:
+        readme = Path("README.md")
+        try:
+            rep.update_readme(readme, paper, block)
+        except (OSError, ValueError) as exc:
+            click.echo(f"error: {exc}", err=True)
+            sys.exit(3)
+        click.echo(f"updated the {paper} tables in {readme}")
 
 
 if __name__ == "__main__":  # pragma: no cover

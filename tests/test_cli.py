@@ -198,3 +198,13 @@ def test_nan_output_stops_with_block_variable_time(cli, tmp_path: Path) -> None:
 )
 def test_block_table_errors(cli, tmp_path: Path, snippet: str, fragment: str) -> None:
     assert_user_error(cli("check", write(tmp_path, HEAD + snippet)), fragment)
+
+
+@pytest.mark.parametrize(
+    "args",
+    [("run",), ("check",), ("fmus", "--bogus"), ("reproduce", "seed999"), ("run", "x.toml")],
+)
+def test_usage_errors_exit_3_without_traceback(cli, args: tuple[str, ...]) -> None:
+    res = cli(*args)
+    assert res.code == 3, (res.code, res.err)
+    assert "Traceback" not in res.err
