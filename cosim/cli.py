@@ -334,7 +334,7 @@ def reproduce(paper: str, out: Path | None, runs: int, seed: int, update_readme:
     if update_readme:
         readme = Path("README.md")
         try:
-            rep.update_readme(readme, paper, block)
+            rep.update_readme(readme, paper, rep.publish_figures(block, readme.parent, paper))
         except (OSError, ValueError) as exc:
             click.echo(f"error: {exc}", err=True)
             sys.exit(3)

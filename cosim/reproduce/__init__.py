@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import importlib
 import re
+import shutil
 from pathlib import Path
 
 PAPERS = ("seed000", "seed001", "seed003")
@@ -62,3 +63,40 @@ def update_readme(readme: Path, name: str, block: str) -> None:
     Path(readme).write_text(
         pattern.sub(lambda m: m.group(1) + block.rstrip() + "\n" + m.group(2), text)
     )
+
+
+_IMAGE = re.compile(r"(!\[[^\]]*\]\()([^)]+\.png)(\))")
+
+
+def publish_figures(block: str, root: Path, paper: str) -> str:
+    """Copy the PNGs a block links to into ``docs/figures/<paper>/`` and relink them.
+
+    The reproduction writes its plots under ``out/`` (not in git); the README must show
+    figures that are committed, so ``--update-readme`` publishes them first.
+
+    Parameters
+    ----------
+    block : str
+        Markdown with image links relative to ``root`` (or absolute).
+    root : Path
+        The repository root (where README.md is).
+    paper : str
+        ``"seed000"``, ``"seed001"`` or ``"seed003"``.
+
+    Returns
+    -------
+    str
+        The block with links to ``docs/figures/<paper>/<name>.png``.
+    """
+    target = Path(root) / "docs" / "figures" / paper
+    target.mkdir(parents=True, exist_ok=True)
+
+    def relink(m: re.Match[str]) -> str:
+        src = Path(m.group(2))
+        src = src if src.is_absolute() else Path(root) / src
+        if not src.is_file():
+            return m.group(0)
+        shutil.copyfile(src, target / src.name)
+        return f"{m.group(1)}docs/figures/{paper}/{src.name}{m.group(3)}"
+
+    return _IMAGE.sub(relink, block)

@@ -1,0 +1,50 @@
+"""The README's reproduction tables and figures come from code (cosim.reproduce)."""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+from cosim.reproduce import PAPERS, publish_figures, reproduce, update_readme
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_update_readme_replaces_only_between_markers(tmp_path: Path) -> None:
+    readme = tmp_path / "README.md"
+    readme.write_text("a\n<!-- seed003:begin -->\nold\n<!-- seed003:end -->\nb\n")
+    update_readme(readme, "seed003", "| new | table |\n")
+    assert (
+        readme.read_text()
+        == "a\n<!-- seed003:begin -->\n| new | table |\n<!-- seed003:end -->\nb\n"
+    )
+    with pytest.raises(ValueError, match="seed001:begin"):
+        update_readme(readme, "seed001", "x")
+
+
+def test_publish_figures_copies_and_relinks(tmp_path: Path) -> None:
+    (tmp_path / "out" / "r").mkdir(parents=True)
+    (tmp_path / "out" / "r" / "fig.png").write_bytes(b"\x89PNG fake")
+    block = "text ![fig](out/r/fig.png) and ![gone](out/r/missing.png)"
+    out = publish_figures(block, tmp_path, "seed003")
+    assert "![fig](docs/figures/seed003/fig.png)" in out
+    assert "![gone](out/r/missing.png)" in out  # a missing file is left alone
+    assert (tmp_path / "docs" / "figures" / "seed003" / "fig.png").read_bytes() == b"\x89PNG fake"
+
+
+def test_unknown_paper_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="expected one of seed000"):
+        reproduce("seed999", tmp_path, 1, 0)
+
+
+@pytest.mark.parametrize("paper", PAPERS)
+def test_readme_figures_of_each_reproduced_paper_are_committed(paper: str) -> None:
+    text = (ROOT / "README.md").read_text()
+    m = re.search(rf"<!-- {paper}:begin -->\n(.*?)<!-- {paper}:end -->", text, re.S)
+    if m is None:
+        pytest.skip(f"{paper} has no README block yet")
+    for link in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", m.group(1)):
+        assert link.startswith(f"docs/figures/{paper}/"), link
+        assert (ROOT / link).is_file(), link
