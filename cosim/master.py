@@ -360,52 +360,71 @@ class Master:
             err.result = result("failed", str(err))
             return err
 
-        def transfer(name: str, source: np.ndarray) -> None:
-            vrs, idx, factor = self._inputs[name]
-            if vrs:
-                sys_.blocks[name].set_real(vrs, (source[idx] * factor).tolist())
+        # Per block, in stepping order: host, rate, input (vrs, source slots, factors or
+        # None when every factor is 1: x * 1.0 == x), output (vrs, slots, variables).
+        plan = []
+        for name, k in zip(self.order, rates, strict=True):
+            in_vrs, in_idx, factor = self._inputs[name]
+            out_vrs, out_idx, outs = self._outputs[name]
+            unit = bool(np.all(factor == 1.0))
+            plan.append(
+                (name, sys_.blocks[name], k, in_vrs, in_idx, None if unit else factor)
+                + (out_vrs, out_idx, outs)
+            )
+        # the recording as a plain (rows, columns) float view of the structured array
+        table = data.view(np.float64).reshape(n_rows, len(names))
+        record_idx = self._record_idx
 
-        def collect(name: str, t: float) -> None:
-            vrs, idx, outs = self._outputs[name]
+        def transfer(host: BlockHost, vrs: list[int], idx: np.ndarray, factor, source) -> None:
+            if vrs:
+                x = source[idx] if factor is None else source[idx] * factor
+                host.set_real(vrs, x.tolist())
+
+        def collect(name: str, host: BlockHost, vrs, idx, outs, t: float) -> None:
             if not vrs:
                 return
-            out = np.asarray(sys_.blocks[name].get_real(vrs), dtype=float)
-            if not np.all(np.isfinite(out)):
-                bad = outs[int(np.flatnonzero(~np.isfinite(out))[0])]
-                raise fail(
-                    ValueError(f"output is {out[outs.index(bad)]} (not finite)"), name, t, bad.name
-                )
+            out = host.get_real(vrs)
+            total = sum(out)
+            if total - total != 0.0:  # inf or nan somewhere (or a sum that overflowed)
+                arr = np.asarray(out, dtype=float)
+                if not np.all(np.isfinite(arr)):
+                    i = int(np.flatnonzero(~np.isfinite(arr))[0])
+                    raise fail(
+                        ValueError(f"output is {arr[i]} (not finite)"), name, t, outs[i].name
+                    )
             values[idx] = out
 
         # -- initialisation, in stepping order ----------------------------------
         before_init = values.copy()
-        for name in self.order:
-            host = sys_.blocks[name]
+        for name, host, _k, in_vrs, in_idx, factor, out_vrs, out_idx, outs in plan:
             try:
                 host.setup(t0, sys_.parameters.get(name, {}))
-                transfer(name, before_init if jacobi else values)
+                transfer(host, in_vrs, in_idx, factor, before_init if jacobi else values)
                 host.exit_init()
             except BlockCallError as exc:
                 raise fail(exc, name, t0, exc.call) from exc
-            collect(name, t0)
-        data[0] = (t0, *values[self._record_idx])
+            collect(name, host, out_vrs, out_idx, outs, t0)
+        table[0, 0] = t0
+        table[0, 1:] = values[record_idx]
         row = 1
 
         # -- macro steps ----------------------------------------------------------
+        every = s.record_every
         for n in range(n_steps):
             source = values.copy() if jacobi else values
-            for name, k in zip(self.order, rates, strict=True):
+            for name, host, k, in_vrs, in_idx, factor, out_vrs, out_idx, outs in plan:
                 if (n + 1) % k:
                     continue
-                transfer(name, source)
+                transfer(host, in_vrs, in_idx, factor, source)
                 t_begin = t0 + (n + 1 - k) * h
                 try:
-                    sys_.blocks[name].do_step(t_begin, k * h)
+                    host.do_step(t_begin, k * h)
                 except BlockCallError as exc:
                     raise fail(exc, name, t_begin, exc.call) from exc
-                collect(name, t0 + (n + 1) * h)
-            if (n + 1) % s.record_every == 0:
-                data[row] = (t0 + (n + 1) * h, *values[self._record_idx])
+                collect(name, host, out_vrs, out_idx, outs, t0 + (n + 1) * h)
+            if (n + 1) % every == 0:
+                table[row, 0] = t0 + (n + 1) * h
+                table[row, 1:] = values[record_idx]
                 row += 1
         return result("completed")
 

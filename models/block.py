@@ -159,6 +159,10 @@ class Block(Fmi2Slave):
         doc = inspect.getdoc(type(self)) or type(self).__name__
         self.description = doc.splitlines()[0]
         self.start_time = 0.0
+        # Real value reference -> (attribute, element index or -1 for a scalar), and the
+        # access plans built from it (see get_real / set_real)
+        self._real_slots: dict[int, tuple[str, int]] = {}
+        self._plans: dict[tuple[int, ...], list[tuple[str, int, int]]] = {}
         for var in self.variables:
             self._declare(var)
 
@@ -242,11 +246,93 @@ class Block(Fmi2Slave):
                 setter=setter,
             )
             if var.kind == "Real":
-                self.register_variable(_UnitReal(scalar_name, var.unit, **kwargs), nested=False)
+                real = _UnitReal(scalar_name, var.unit, **kwargs)
+                self.register_variable(real, nested=False)
+                self._real_slots[real.value_reference] = (var.name, i if var.is_vector else -1)
             elif var.kind == "Integer":
                 self.register_variable(Integer(scalar_name, **kwargs), nested=False)
             else:
                 self.register_variable(Boolean(scalar_name, **kwargs), nested=False)
+
+    # ------------------------------------------------------ Real access (fast path)
+    def _plan(self, vrs: Any) -> list[tuple[str, int, int]]:
+        """Segments ``(attribute, start, stop)`` covering ``vrs`` in order (cached).
+
+        Consecutive elements of one vector become one slice; a scalar is
+        ``(attribute, -1, -1)``. Raises like pythonfmu: KeyError for an unknown value
+        reference, TypeError for a variable that is not Real.
+        """
+        key = tuple(vrs)
+        plan = self._plans.get(key)
+        if plan is not None:
+            return plan
+        plan = []
+        for vr in key:
+            slot = self._real_slots.get(vr)
+            if slot is None:
+                self.vars[vr]  # KeyError for an unknown value reference
+                raise TypeError(f"Variable with valueReference={vr} is not of type Real!")
+            name, index = slot
+            last = plan[-1] if plan else None
+            if index >= 0 and last is not None and last[0] == name and last[2] == index:
+                plan[-1] = (name, last[1], index + 1)
+            else:
+                plan.append((name, index, index + 1) if index >= 0 else (name, -1, -1))
+        if len(self._plans) >= 64:  # callers use a few fixed lists; bound the cache anyway
+            self._plans.clear()
+        self._plans[key] = plan
+        return plan
+
+    def get_real(self, vrs: Any) -> list[float]:
+        """Values of Real variables (pythonfmu's per-scalar getters, one slice per vector).
+
+        Parameters
+        ----------
+        vrs : sequence of int
+            Value references.
+
+        Returns
+        -------
+        list of float
+            In the order of ``vrs``.
+        """
+        out: list[float] = []
+        for name, lo, hi in self._plan(vrs):
+            value = getattr(self, name)
+            if lo < 0:
+                out.append(float(value))
+            elif (
+                lo == 0
+                and type(value) is np.ndarray
+                and value.shape == (hi,)
+                and (value.dtype == np.float64)
+            ):
+                out += value.tolist()  # the whole vector, already floats
+            else:
+                out.extend(np.asarray(value, dtype=float)[lo:hi].tolist())
+        return out
+
+    def set_real(self, vrs: Any, values: Any) -> None:
+        """Set Real variables; vector elements are written into the attribute's array.
+
+        Parameters
+        ----------
+        vrs : sequence of int
+            Value references.
+        values : sequence of float
+            One value per reference.
+        """
+        pos = 0
+        array = None
+        for name, lo, hi in self._plan(vrs):
+            if lo < 0:
+                setattr(self, name, values[pos])
+                pos += 1
+            else:
+                if array is None:  # one conversion for every vector element
+                    array = np.asarray(values, dtype=float)
+                getattr(self, name)[lo:hi] = array[pos : pos + hi - lo]
+                pos += hi - lo
 
     def _accessors(self, var: Var, index: int) -> tuple[Any, Any]:
         name = var.name

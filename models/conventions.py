@@ -488,13 +488,19 @@ def rotvec_to_dcm_and_jacobian(phi: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         Right Jacobian ``J_r(phi)``.
     """
     phi = np.asarray(phi, dtype=float)
-    a = np.sqrt(np.sum(phi * phi, axis=-1))
+    a = np.sqrt((phi * phi).sum(axis=-1))
     small = a < 1e-3
-    safe = np.where(small, 1.0, a)
     a2 = a * a
-    s1 = np.where(small, 1.0 - a2 / 6.0 + a2 * a2 / 120.0, np.sin(safe) / safe)
-    s2 = np.where(small, 0.5 - a2 / 24.0 + a2 * a2 / 720.0, (1.0 - np.cos(safe)) / safe**2)
-    s3 = np.where(small, 1.0 / 6.0 - a2 / 120.0 + a2 * a2 / 5040.0, (safe - np.sin(safe)) / safe**3)
+    a4 = a2 * a2
+    if small.all():  # the series alone (same values as the np.where below picks)
+        s1 = 1.0 - a2 / 6.0 + a4 / 120.0
+        s2 = 0.5 - a2 / 24.0 + a4 / 720.0
+        s3 = 1.0 / 6.0 - a2 / 120.0 + a4 / 5040.0
+    else:
+        safe = np.where(small, 1.0, a)
+        s1 = np.where(small, 1.0 - a2 / 6.0 + a4 / 120.0, np.sin(safe) / safe)
+        s2 = np.where(small, 0.5 - a2 / 24.0 + a4 / 720.0, (1.0 - np.cos(safe)) / safe**2)
+        s3 = np.where(small, 1.0 / 6.0 - a2 / 120.0 + a4 / 5040.0, (safe - np.sin(safe)) / safe**3)
     k = skew(phi)
     k2 = k @ k
     s1, s2, s3 = s1[..., None, None], s2[..., None, None], s3[..., None, None]
@@ -683,6 +689,24 @@ def step_hermite(
     return b0 @ p, (b1 @ p) / h, (b2 @ p) / (h * h)
 
 
+def hermite_basis(s: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Cubic Hermite basis at the nodes ``s`` (cached per ``s``).
+
+    Parameters
+    ----------
+    s : array_like, shape (m,)
+        Normalised times in [0, 1].
+
+    Returns
+    -------
+    b0, b1, b2 : ndarray, shape (m, 4)
+        Value, first and second derivative (in ``s``) of the path from the rows
+        ``[x0, h x0', x1, h x1']``; :func:`step_hermite` is ``b0 @ p``, ``b1 @ p / h``,
+        ``b2 @ p / h^2``.
+    """
+    return _hermite_basis(np.ascontiguousarray(s, dtype=float).tobytes())
+
+
 @functools.lru_cache(maxsize=64)
 def _hermite_basis(key: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Cubic Hermite basis (value, first and second derivative) at the nodes, each (m, 4)."""
@@ -696,9 +720,47 @@ def _hermite_basis(key: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return b0, b1, b2
 
 
-def _norm(v: np.ndarray) -> float:
-    """Euclidean norm of a 3-vector (cheaper than ``np.linalg.norm``)."""
-    return float(np.sqrt(v @ v))
+@functools.lru_cache(maxsize=64)
+def _path_basis(key: bytes) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Bases of :class:`StepPath`'s paths at the nodes ``u`` (``key``: their bytes).
+
+    Returns
+    -------
+    quartic, quartic_d : ndarray, shape (m, 5)
+        Value and ``h`` times the time derivative of the quartic from the rows
+        ``[x0, h x0', x1, h x1', c]``: the cubic Hermite basis plus ``u^2 (1 - u)^2``.
+    quadratic, quadratic_d : ndarray, shape (m, 3)
+        The same for the quadratic from ``[x0, x1, c]``: ``x0 (1 - u) + x1 u + c u (1 - u)``.
+    """
+    u = np.frombuffer(key, dtype=float)[:, None]
+    b0, b1, _ = _hermite_basis(key)
+    bump = u * (1.0 - u)
+    quartic = np.hstack([b0, bump * bump])
+    quartic_d = np.hstack([b1, 2.0 * bump * (1.0 - 2.0 * u)])
+    quadratic = np.hstack([1.0 - u, u, bump])
+    quadratic_d = np.hstack([-np.ones_like(u), np.ones_like(u), 1.0 - 2.0 * u])
+    out = (quartic, quartic_d, quadratic, quadratic_d)
+    for b in out:
+        b.setflags(write=False)
+    return out
+
+
+def path_basis(s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Bases that turn :meth:`StepPath.coefficients` into node values (cached per ``s``).
+
+    Parameters
+    ----------
+    s : ndarray, shape (m,)
+        Normalised times in [0, 1].
+
+    Returns
+    -------
+    quartic, quartic_d : ndarray, shape (m, 5)
+        ``x = quartic @ coef``, ``x' = quartic_d @ coef / h`` for a path with a derivative.
+    quadratic, quadratic_d : ndarray, shape (m, 3)
+        The same for a path without one.
+    """
+    return _path_basis(np.ascontiguousarray(s, dtype=float).tobytes())
 
 
 class StepPath:
@@ -734,6 +796,61 @@ class StepPath:
         self._x = np.array(x, dtype=float)
         self._xd = None if xd is None else np.array(xd, dtype=float)
 
+    def coefficients(
+        self,
+        t: float,
+        h: float,
+        end: ArrayLike,
+        increment: ArrayLike,
+        end_rate: ArrayLike | None = None,
+    ) -> np.ndarray | None:
+        """This step's path as coefficient rows for :func:`path_basis`, and advance.
+
+        Parameters
+        ----------
+        t, h : float
+            Step start and size [s].
+        end : array_like, shape (3,)
+            Value at ``t + h``.
+        increment : array_like, shape (3,)
+            Integral over the step.
+        end_rate : array_like, shape (3,), optional
+            Derivative at ``t + h`` (per second).
+
+        Returns
+        -------
+        ndarray or None
+            With ``end_rate``: shape (5, 3), rows ``[x0, h x0', x1, h x1', c]`` of the
+            quartic; without: shape (3, 3), rows ``[x0, x1, c]`` of the quadratic. None
+            when the stored start is not valid for this step: use the memoryless
+            :func:`step_quadratic` / :func:`step_linear` (what :meth:`nodes` does).
+        """
+        x1 = np.asarray(end, dtype=float)
+        mean = np.asarray(increment, dtype=float) / h
+        valid = self._t is not None and abs(t - self._t) <= 1e-6 * h
+        out = None
+        if end_rate is None:
+            if valid:
+                x0 = self._x
+                c = mean - 0.5 * (x0 + x1)
+                out = np.array([x0, x1, 6.0 * c])
+                norms = np.sqrt((out * out).sum(axis=1))  # |x0|, |x1|, 6 |c|
+                if not norms[2] <= 6.0 * (self.rel_tol * (norms[0] + norms[1]) + 1e-300):
+                    out = None
+            self.reset(t + h, x1)
+            return out
+        xd1 = np.asarray(end_rate, dtype=float)
+        if valid and self._xd is not None:
+            x0, m0, m1 = self._x, self._xd * h, xd1 * h
+            mismatch = mean - (0.5 * (x0 + x1) + (m0 - m1) / 12.0)
+            out = np.array([x0, m0, x1, m1, 30.0 * mismatch])
+            norms = np.sqrt((out * out).sum(axis=1))  # |x0|, |m0|, |x1|, |m1|, 30 |mismatch|
+            scale = norms[0] + norms[2] + norms[1] + norms[3]
+            if not norms[4] <= 30.0 * (self.rel_tol * scale + 1e-300):
+                out = None
+        self.reset(t + h, x1, xd1)
+        return out
+
     def nodes(
         self,
         t: float,
@@ -762,39 +879,12 @@ class StepPath:
         -------
         x, x_dot : ndarray, shape (m, 3)
         """
-        x1 = np.asarray(end, dtype=float)
-        mean = np.asarray(increment, dtype=float) / h
-        valid = self._t is not None and abs(t - self._t) <= 1e-6 * h
-        u = np.asarray(s, dtype=float)[:, None]
-        out: tuple[np.ndarray, np.ndarray] | None = None
+        coef = self.coefficients(t, h, end, increment, end_rate)
+        if coef is None:
+            if end_rate is None:
+                return step_linear(end, increment, h, s)
+            return step_quadratic(end, end_rate, increment, h, s)
+        quartic, quartic_d, quadratic, quadratic_d = path_basis(s)
         if end_rate is None:
-            if valid:
-                x0 = self._x
-                c = mean - 0.5 * (x0 + x1)
-                scale = _norm(x0) + _norm(x1)
-                if _norm(c) <= self.rel_tol * scale + 1e-300:
-                    c6 = 6.0 * c
-                    out = (
-                        x0 + (x1 - x0) * u + c6 * u * (1.0 - u),
-                        ((x1 - x0) + c6 * (1.0 - 2.0 * u)) / h,
-                    )
-            if out is None:
-                out = step_linear(x1, increment, h, s)
-            self.reset(t + h, x1)
-            return out
-        xd1 = np.asarray(end_rate, dtype=float)
-        if valid and self._xd is not None:
-            x0, m0, m1 = self._x, self._xd * h, xd1 * h
-            mismatch = mean - (0.5 * (x0 + x1) + (m0 - m1) / 12.0)
-            scale = _norm(x0) + _norm(x1) + _norm(m0) + _norm(m1)
-            if _norm(mismatch) <= self.rel_tol * scale + 1e-300:
-                x, xd, _ = step_hermite(x0, self._xd, x1, xd1, h, s)
-                c = 30.0 * mismatch
-                out = (
-                    x + c * (u * (1.0 - u)) ** 2,
-                    xd + c * (2.0 * u * (1.0 - u) * (1.0 - 2.0 * u)) / h,
-                )
-        if out is None:
-            out = step_quadratic(x1, xd1, increment, h, s)
-        self.reset(t + h, x1, xd1)
-        return out
+            return quadratic @ coef, (quadratic_d @ coef) / h
+        return quartic @ coef, (quartic_d @ coef) / h

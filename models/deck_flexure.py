@@ -132,6 +132,11 @@ class DeckFlexure(Block):
         sig = np.asarray(self.sigma, dtype=float)
         self._q = 4.0 * self._beta**3 * sig**2
         self._cache: tuple[float, np.ndarray, np.ndarray] | None = None
+        self._two_beta = 2.0 * self._beta
+        self._beta2 = self._beta**2
+        self._noise = np.empty((0, 3, 3))  # normals drawn ahead, one (3, 3) block per step
+        self._pos = 0
+        self._x0 = np.zeros((3, 3))  # [0, theta, theta'] per axis (the integral restarts)
         z = self._rng.standard_normal((2, 3))
         self.theta = sig * z[0]
         self.theta_dot = self._beta * sig * z[1]
@@ -152,16 +157,27 @@ class DeckFlexure(Block):
 
     def step(self, t: float, h: float) -> None:
         phi, root = self._model(h)
-        x0 = np.stack([np.zeros(3), self.theta, self.theta_dot], axis=-1)  # (axis, 3)
-        noise = self._rng.standard_normal((3, 3))  # (axis, component)
+        x0 = self._x0  # (axis, 3): column 0 stays 0
+        x0[:, 1] = self.theta
+        x0[:, 2] = self.theta_dot
+        if self._pos >= len(self._noise):
+            # the same numbers as one (3, 3) draw per step, in the same order
+            self._noise = self._rng.standard_normal((AHEAD_STEPS, 3, 3))
+            self._pos = 0
+        noise = self._noise[self._pos]  # (axis, component)
+        self._pos += 1
         x1 = np.einsum("aij,aj->ai", phi, x0) + np.einsum("aij,aj->ai", root, noise)
         integral, theta, theta_dot = x1[:, 0], x1[:, 1], x1[:, 2]
         d_theta = theta - self.theta
         d_theta_dot = theta_dot - self.theta_dot
-        beta = self._beta
-        self.eta = (d_theta_dot + 2.0 * beta * d_theta + beta**2 * integral) / h
+        beta2 = self._beta2
+        self.eta = (d_theta_dot + self._two_beta * d_theta + beta2 * integral) / h
         self.theta = theta
         self.theta_dot = theta_dot
-        self.theta_ddot = -2.0 * beta * theta_dot - beta**2 * theta + self.eta
+        self.theta_ddot = -self._two_beta * theta_dot - beta2 * theta + self.eta
         self.dtheta_flex = d_theta
         self.dtheta_dot_flex = d_theta_dot
+
+
+#: Steps of random numbers drawn ahead (one call instead of one per step).
+AHEAD_STEPS = 64

@@ -66,14 +66,16 @@ from models.block import Block, input_, output, parameter
 from models.conventions import (
     StepPath,
     cross,
-    dcm_to_euler,
     euler_to_dcm,
+    hermite_basis,
+    path_basis,
     rotvec_to_dcm_and_jacobian,
     simpson_nodes,
-    step_hermite,
+    step_linear,
+    step_quadratic,
     substeps,
 )
-from models.earth import omega_ie_n
+from models.earth import OMEGA_IE
 
 _DEG = math.pi / 180.0
 
@@ -122,8 +124,9 @@ class LeverArm(Block):
             raise ValueError(f"LeverArm.flexure must be 0 or 1, got {self.flexure}")
         self._r0 = np.asarray(self.r0, dtype=float).copy()
         self._R0 = r0_matrix(self._r0)
+        self._R0T = self._R0.T.copy()
         self._c_s_d = euler_to_dcm(np.asarray(self.mount_rpy, dtype=float))
-        self._nodes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+        self._nodes: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, int]] = {}
         self._w_path = StepPath()
         self._w_path.reset(self.start_time, self.omega_ib_b, self.omega_dot_b)
         self._f_path = StepPath()
@@ -157,18 +160,19 @@ class LeverArm(Block):
         w_s, f_s : ndarray, shape (m, 3)
         c_d_b : ndarray, shape (m, 3, 3), or None without flexure
         """
-        r = self._r0 + th @ self._R0.T
+        r = self._r0 + th @ self._R0T
         # omega x (omega x r) = omega (omega . r) - r |omega|^2
-        wr = np.sum(w * r, axis=-1, keepdims=True)
-        ww = np.sum(w * w, axis=-1, keepdims=True)
+        wr = (w * r).sum(axis=-1, keepdims=True)
+        ww = (w * w).sum(axis=-1, keepdims=True)
         f_p = f + cross(wd, r) + w * wr - r * ww
         if not self.flexure:
             return w @ self._c_s_d, f_p @ self._c_s_d, None
-        f_p = f_p + 2.0 * cross(w, thd @ self._R0.T) + thdd @ self._R0.T
+        f_p = f_p + 2.0 * cross(w, thd @ self._R0T) + thdd @ self._R0T
         c_d_b, j_r = rotvec_to_dcm_and_jacobian(th)
-        w_d = (w[:, None, :] @ c_d_b)[:, 0, :] + (j_r @ thd[:, :, None])[:, :, 0]
-        f_d = (f_p[:, None, :] @ c_d_b)[:, 0, :]
-        return w_d @ self._c_s_d, f_d @ self._c_s_d, c_d_b
+        # [w, f_p] @ C_d_b in one batched product: rows (m, 2, 3)
+        wf = np.stack([w, f_p], axis=1) @ c_d_b
+        w_d = wf[:, 0, :] + (j_r @ thd[:, :, None])[:, :, 0]
+        return w_d @ self._c_s_d, wf[:, 1, :] @ self._c_s_d, c_d_b
 
     def _publish_end(self) -> None:
         """Outputs at the time of the current inputs (used at initialisation)."""
@@ -194,33 +198,79 @@ class LeverArm(Block):
         """Set the step-end outputs from the slave rate and force and the flexure state."""
         self.omega_is_s = w_s.copy()
         self.f_s = f_s.copy()
-        c_b_n = euler_to_dcm(np.asarray(self.rpy, dtype=float))
+        c_b_n = _euler_to_dcm3(self.rpy)
         c_s_b = self._c_s_d if c_d_b is None else c_d_b @ self._c_s_d
-        self.rpy_s = dcm_to_euler(c_b_n @ c_s_b)
+        self.rpy_s = _dcm_to_euler3(c_b_n @ c_s_b)
         self.r_p = self._r0 + self._R0 @ th
-        w_eb = np.asarray(self.omega_ib_b, dtype=float) - c_b_n.T @ omega_ie_n(float(self.lat))
+        lat = float(self.lat)
+        w_ie = np.array([OMEGA_IE * math.cos(lat), 0.0, -OMEGA_IE * math.sin(lat)])
+        w_eb = np.asarray(self.omega_ib_b, dtype=float) - w_ie @ c_b_n
         self.v_n_s = np.asarray(self.v_n, dtype=float) + c_b_n @ (
-            cross(w_eb, self.r_p) + self._R0 @ thd
+            _cross3(w_eb, self.r_p) + self._R0 @ thd
         )
 
-    def step(self, t: float, h: float) -> None:
+    def _step_basis(self, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+        """Simpson nodes and weights of the step, and one basis for every path at the nodes.
+
+        Returns
+        -------
+        s, wts : ndarray, shape (m,)
+            Nodes in [0, 1] and weights (sum 1).
+        basis : ndarray, shape (6 m, 12)
+            Block diagonal: rows ``[w; h w'; f; theta; h theta'; h^2 theta'']`` from the
+            coefficient rows ``[quartic of w (5); quadratic of f (3); Hermite of theta (4)]``.
+        m : int
+            Number of nodes.
+        """
         n = substeps(h, self.dt_truth)
-        if n not in self._nodes:
-            self._nodes[n] = simpson_nodes(n)
-        s, wts = self._nodes[n]
-        w, wd = self._w_path.nodes(t, h, self.omega_ib_b, self.dtheta_b, s, self.omega_dot_b)
-        f, _ = self._f_path.nodes(t, h, self.f_b, self.dv_b, s)
+        entry = self._nodes.get(n)
+        if entry is None:
+            s, wts = simpson_nodes(n)
+            m = len(s)
+            quartic, quartic_d, quadratic, _ = path_basis(s)
+            b0, b1, b2 = hermite_basis(s)
+            basis = np.zeros((6 * m, 12))
+            basis[0:m, 0:5] = quartic
+            basis[m : 2 * m, 0:5] = quartic_d
+            basis[2 * m : 3 * m, 5:8] = quadratic
+            basis[3 * m : 4 * m, 8:12] = b0
+            basis[4 * m : 5 * m, 8:12] = b1
+            basis[5 * m : 6 * m, 8:12] = b2
+            entry = self._nodes[n] = (s, wts, basis, m)
+        return entry
+
+    def step(self, t: float, h: float) -> None:
+        s, wts, basis, m = self._step_basis(h)
+        cw = self._w_path.coefficients(t, h, self.omega_ib_b, self.dtheta_b, self.omega_dot_b)
+        cf = self._f_path.coefficients(t, h, self.f_b, self.dv_b)
         if self.flexure:
             th1 = np.asarray(self.theta, dtype=float)
             thd1 = np.asarray(self.theta_dot, dtype=float)
             th0 = th1 - np.asarray(self.dtheta_flex, dtype=float)
             thd0 = thd1 - np.asarray(self.dtheta_dot_flex, dtype=float)
-            th, thd, thdd = step_hermite(th0, thd0, th1, thd1, h, s)
+            cth = np.array([th0, thd0 * h, th1, thd1 * h])
+        else:
+            cth = _ZERO[4]
+        coef = np.concatenate([_ZERO[5] if cw is None else cw, _ZERO[3] if cf is None else cf, cth])
+        paths = basis @ coef  # every path at every node: one product
+        if cw is None:  # no valid start: memoryless quadratic
+            w, wd = step_quadratic(self.omega_ib_b, self.omega_dot_b, self.dtheta_b, h, s)
+        else:
+            w, wd = paths[0:m], paths[m : 2 * m] / h
+        if cf is None:
+            f, _ = step_linear(self.f_b, self.dv_b, h, s)
+        else:
+            f = paths[2 * m : 3 * m]
+        if self.flexure:
+            th = paths[3 * m : 4 * m]
+            thd = paths[4 * m : 5 * m] / h
+            thdd = paths[5 * m :] / (h * h)
         else:
             th = thd = thdd = np.zeros_like(w)
         w_s, f_s, c_d_b = self._slave(w, wd, f, th, thd, thdd)
-        self.dtheta_s = h * (wts @ w_s)
-        self.dv_s = h * (wts @ f_s)
+        sums = h * (wts @ np.hstack([w_s, f_s]))
+        self.dtheta_s = sums[0:3]
+        self.dv_s = sums[3:6]
         # Step end: the path's end node equals the inputs except theta'', which is the
         # DeckFlexure's theta_ddot (step-mean noise) rather than the Hermite end slope.
         f_end = f_s[-1]
@@ -230,3 +280,37 @@ class LeverArm(Block):
         d_acc = np.asarray(self.theta_ddot, dtype=float) - thdd[-1]
         f_end = f_end + ((self._R0 @ d_acc) @ c_d_b[-1]) @ self._c_s_d
         self._finish(w_s[-1], f_end, th1, thd1, c_d_b[-1])
+
+
+#: Zero coefficient rows standing in for a path computed otherwise (fallback or rigid deck).
+_ZERO = {k: np.zeros((k, 3)) for k in (3, 4, 5)}
+
+
+def _euler_to_dcm3(rpy: np.ndarray) -> np.ndarray:
+    """:func:`models.conventions.euler_to_dcm` of one ``[roll, pitch, yaw]`` (scalar math)."""
+    r, p, y = np.asarray(rpy, dtype=float).tolist()
+    cr, sr = math.cos(r), math.sin(r)
+    cp, sp = math.cos(p), math.sin(p)
+    cy, sy = math.cos(y), math.sin(y)
+    return np.array(
+        [
+            [cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy],
+            [cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy],
+            [-sp, sr * cp, cr * cp],
+        ]
+    )
+
+
+def _dcm_to_euler3(c: np.ndarray) -> np.ndarray:
+    """:func:`models.conventions.dcm_to_euler` of one 3 x 3 DCM (scalar math)."""
+    (c00, _, _), (c10, _, _), (c20, c21, c22) = c.tolist()
+    return np.array(
+        [math.atan2(c21, c22), math.atan2(-c20, math.hypot(c21, c22)), math.atan2(c10, c00)]
+    )
+
+
+def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Cross product of two 3-vectors (scalar math)."""
+    a0, a1, a2 = a.tolist()
+    b0, b1, b2 = b.tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])

@@ -34,6 +34,7 @@ yaw 5 deg / 8 s about a mean heading of 0, no linear motion.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -83,51 +84,121 @@ class ShipMotion(Block):
         cy, sy = math.cos(self.rpy_mean[2]), math.sin(self.rpy_mean[2])
         self._c_l_n = np.array([[cy, -sy, 0.0], [sy, cy, 0.0], [0.0, 0.0, 1.0]])
         self._nodes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-        truth = self._truth(np.array([self.start_time]))
-        self._publish(truth)
+        self._ahead: _Ahead | None = None
+        self._ahead_size = 1
+        truth, rpy, v_n = self._truth(np.array([self.start_time]))
+        self._publish(truth, rpy, v_n, 0)
         self.dtheta_b = np.zeros(3)
         self.dv_b = np.zeros(3)
 
-    def _truth(self, tt: np.ndarray) -> ImuTruth:
-        """Closed-form trajectory and inertial truth at the instants ``tt`` (shape (m,))."""
+    def _truth(self, tt: np.ndarray) -> tuple[ImuTruth, np.ndarray, np.ndarray]:
+        """Closed-form trajectory and inertial truth at the instants ``tt`` (shape (m,)).
+
+        Returns
+        -------
+        truth : ImuTruth
+            Inertial quantities at ``tt``.
+        rpy, v_n : ndarray, shape (m, 3)
+            Euler angles [rad] and NED velocity [m/s].
+        """
         arg = tt[:, None] * self._w + np.asarray(self.phase)
         sa, ca = np.sin(arg), np.cos(arg)
         rpy = np.asarray(self.rpy_mean) + self._amp * sa
         rpy_dot = self._amp * self._w * ca
         rpy_ddot = -self._amp * self._w**2 * sa
         if not self._moving:
-            self._last = (rpy[-1], np.zeros(3))
-            return euler_motion_truth(rpy, rpy_dot, rpy_ddot, None, None, None, *self._ref())
+            truth = euler_motion_truth(rpy, rpy_dot, rpy_ddot, None, None, None, *self._ref())
+            return truth, rpy, np.zeros_like(rpy)
         argl = tt[:, None] * self._wl + np.asarray(self.lin_phase)
         sl, cl = np.sin(argl), np.cos(argl)
         c = self._c_l_n.T  # row vectors: x_n = x_l @ C_l_n.T
         d_n = (self._lamp * sl) @ c
         v_n = (self._lamp * self._wl * cl) @ c
         a_n = (-self._lamp * self._wl**2 * sl) @ c
-        self._last = (rpy[-1], v_n[-1])
-        return euler_motion_truth(rpy, rpy_dot, rpy_ddot, d_n, v_n, a_n, *self._ref())
+        return euler_motion_truth(rpy, rpy_dot, rpy_ddot, d_n, v_n, a_n, *self._ref()), rpy, v_n
 
     def _ref(self) -> tuple[float, float, float]:
         return float(self.lat0), float(self.lon0), float(self.h0)
 
-    def _publish(self, truth: ImuTruth) -> None:
-        rpy, v_n = self._last
-        self.rpy = np.array(rpy)
+    def _publish(self, truth: ImuTruth, rpy: np.ndarray, v_n: np.ndarray, i: int) -> None:
+        """Set the state outputs from row ``i`` of the evaluated truth."""
+        self.rpy = np.array(rpy[i])
         self.rpy[2] = math.remainder(self.rpy[2], 2.0 * math.pi)
-        self.v_n = np.array(v_n)
-        self.lat = float(truth.lat[-1])
-        self.lon = float(truth.lon[-1])
-        self.h = float(truth.h[-1])
-        self.omega_ib_b = truth.omega_ib_b[-1].copy()
-        self.omega_dot_b = truth.omega_dot_b[-1].copy()
-        self.f_b = truth.f_b[-1].copy()
+        self.v_n = np.array(v_n[i])
+        self.lat = float(truth.lat[i])
+        self.lon = float(truth.lon[i])
+        self.h = float(truth.h[i])
+        self.omega_ib_b = truth.omega_ib_b[i].copy()
+        self.omega_dot_b = truth.omega_dot_b[i].copy()
+        self.f_b = truth.f_b[i].copy()
 
     def step(self, t: float, h: float) -> None:
+        ahead = self._ahead
+        if ahead is None or not ahead.serves(t, h):
+            ahead = self._look_ahead(t, h)
+        k = ahead.pos
+        ahead.pos += 1
+        self.dtheta_b = ahead.dtheta[k].copy()
+        self.dv_b = ahead.dv[k].copy()
+        self._publish(ahead.truth, ahead.rpy, ahead.v_n, (k + 1) * ahead.m - 1)
+
+    def _look_ahead(self, t: float, h: float) -> _Ahead:
+        """Evaluate the steps from ``t`` on, predicting the master's next step starts.
+
+        The truth is closed form in time, so several steps cost one vectorised call.
+        Each step still uses exactly its own ``t`` and ``h`` (:meth:`_Ahead.serves`
+        compares them bit for bit with the prediction ``t0 + n h`` the master uses);
+        the number of steps evaluated ahead doubles while the predictions hold (up to
+        :data:`AHEAD_STEPS`) and drops to one when one fails.
+        """
+        previous = self._ahead
+        if previous is not None and previous.pos < len(previous.starts):
+            self._ahead_size = 1  # mispredicted: irregular steps, evaluate one at a time
+        elif previous is not None:
+            self._ahead_size = min(AHEAD_STEPS, 2 * self._ahead_size)
+        size = self._ahead_size
         n = substeps(h, self.dt_truth)
         if n not in self._nodes:
             self._nodes[n] = simpson_nodes(n)
         s, w = self._nodes[n]
-        truth = self._truth(t + h * s)
-        self.dtheta_b = h * (w @ truth.omega_ib_b)
-        self.dv_b = h * (w @ truth.f_b)
-        self._publish(truth)
+        k0 = round((t - self.start_time) / h)
+        starts = self.start_time + (k0 + np.arange(size)) * h
+        if starts[0] != t:
+            starts = t + np.arange(size) * h
+        truth, rpy, v_n = self._truth((starts[:, None] + h * s).ravel())
+        m = len(s)
+        self._ahead = _Ahead(
+            h=h,
+            starts=starts,
+            m=m,
+            truth=truth,
+            rpy=rpy,
+            v_n=v_n,
+            dtheta=h * np.matmul(w, truth.omega_ib_b.reshape(size, m, 3)),
+            dv=h * np.matmul(w, truth.f_b.reshape(size, m, 3)),
+        )
+        return self._ahead
+
+
+#: Most steps of a moored ship evaluated in one vectorised call.
+AHEAD_STEPS = 64
+
+
+@dataclass
+class _Ahead:
+    """Truth of the next steps, evaluated at once (rows are node ``j`` of step ``k`` at
+    ``k m + j``; step ``k`` from ``starts[k]`` to ``starts[k] + h``)."""
+
+    h: float
+    starts: np.ndarray
+    m: int
+    truth: ImuTruth
+    rpy: np.ndarray
+    v_n: np.ndarray
+    dtheta: np.ndarray
+    dv: np.ndarray
+    pos: int = 0
+
+    def serves(self, t: float, h: float) -> bool:
+        """True when the next evaluated step is exactly the step from ``t`` of size ``h``."""
+        return h == self.h and self.pos < len(self.starts) and self.starts[self.pos] == t

@@ -50,6 +50,9 @@ Random numbers: ``numpy.random.default_rng(seed)``; at initialisation one (2, 18
 block of standard normals (per triad: turn-on bias 3, scale factor 3, misalignment 9,
 initial Gauss-Markov state 3), then one (2, 5, 3) block per step (per triad: white,
 Gauss-Markov 2, random walk 2). The draws do not depend on which errors are enabled.
+The step blocks are drawn :data:`AHEAD_STEPS` at a time (the same numbers in the same
+order) and the input-free terms computed for those steps at once, with the same
+arithmetic as step by step.
 """
 
 from __future__ import annotations
@@ -58,6 +61,7 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy.signal import lfilter
 
 from models.block import Block, input_, output, parameter
 
@@ -334,6 +338,9 @@ class StrapdownImu(Block):
             self._err[s] = np.diag(sf) + m_fix + m_turn_on
             self._gm[s] = res[f"{p}_bi_sigma"] * z[s, 15:18]
         self._coeff_h: float | None = None
+        self._z = np.empty((0, 2, 5, 3))  # normals drawn ahead, one (2, 5, 3) block per step
+        self._pos = 0  # next unused block of self._z
+        self._ahead: dict[str, Any] | None = None
         bias = self._const + self._gm + self._rw
         self.gyro_bias_b = bias[0].copy()
         self.accel_bias_b = bias[1].copy()
@@ -364,22 +371,55 @@ class StrapdownImu(Block):
         self._white_h = self._white * math.sqrt(h)
         self._coeff_h = h
 
+    def _noise_ahead(self, h: float) -> dict[str, Any]:
+        """Bias integrals and white-noise increments of the steps drawn ahead, for step ``h``.
+
+        They do not depend on the inputs, so the per-step recursions (Gauss-Markov,
+        random walk) run over :data:`AHEAD_STEPS` steps at once with the same
+        arithmetic as one step at a time (``lfilter`` is the recursion
+        ``x_{k+1} = phi x_k + a_k``, ``cumsum`` the sequential sum). The random numbers
+        are the same: drawing k blocks at once gives the k blocks drawn one by one.
+        """
+        if self._pos >= len(self._z):
+            self._z = self._rng.standard_normal((AHEAD_STEPS, 2, 5, 3))
+            self._pos = 0
+        z = self._z[self._pos :]
+        gm, rw = self._gm_c, self._rw_c
+        gm_state = np.empty((len(z), 2, 3))  # state at each step's start
+        gm_state[0] = self._gm
+        drive = gm[:, 2:3] * z[:, :, 1]
+        for s in (0, 1):
+            phi = float(gm[s, 0])
+            after, _ = lfilter(
+                [1.0, 0.0], [1.0, -phi], drive[:, s], axis=0, zi=phi * self._gm[s : s + 1]
+            )  # after[k] = phi gm_k + drive_k, the state after step k
+            gm_state[1:, s] = after[:-1]
+        rw_walk = np.cumsum(
+            np.concatenate([self._rw[None], rw[:, 0:1] * z[:, :, 3]]), axis=0
+        )  # rw_0, rw_0 + a_0, (rw_0 + a_0) + a_1, ...
+        gm_int = gm[:, 1:2] * gm_state + gm[:, 3:4] * z[:, :, 1] + gm[:, 4:5] * z[:, :, 2]
+        rw_int = h * rw_walk[:-1] + rw[:, 1:2] * z[:, :, 3] + rw[:, 2:3] * z[:, :, 4]
+        return {
+            "h": h,
+            "start": self._pos,
+            "bias_int": self._const * h + gm_int + rw_int,
+            "white": self._white_h[:, None] * z[:, :, 0],
+            "gm_next": gm[:, 0:1] * gm_state + gm[:, 2:3] * z[:, :, 1],
+            "rw_next": rw_walk[1:],
+        }
+
     def step(self, t: float, h: float) -> None:
         self._coefficients(h)
-        z = self._rng.standard_normal((2, 5, 3))
-        gm, rw = self._gm_c, self._rw_c
-        gm_int = gm[:, 1:2] * self._gm + gm[:, 3:4] * z[:, 1] + gm[:, 4:5] * z[:, 2]
-        self._gm = gm[:, 0:1] * self._gm + gm[:, 2:3] * z[:, 1]
-        rw_int = h * self._rw + rw[:, 1:2] * z[:, 3] + rw[:, 2:3] * z[:, 4]
-        self._rw = self._rw + rw[:, 0:1] * z[:, 3]
-        bias_int = self._const * h + gm_int + rw_int
-        d_true = np.stack([np.asarray(self.dtheta_b, float), np.asarray(self.dv_b, float)])
-        y = (
-            d_true
-            + np.einsum("sij,sj->si", self._err, d_true)
-            + bias_int
-            + self._white_h[:, None] * z[:, 0]
-        )
+        ahead = self._ahead
+        if ahead is None or ahead["h"] != h or self._pos >= len(self._z):
+            ahead = self._ahead = self._noise_ahead(h)
+        k = self._pos - ahead["start"]
+        self._pos += 1
+        bias_int = ahead["bias_int"][k]
+        self._gm = ahead["gm_next"][k]
+        self._rw = ahead["rw_next"][k]
+        d_true = np.array([self.dtheta_b, self.dv_b], dtype=float)
+        y = d_true + np.einsum("sij,sj->si", self._err, d_true) + bias_int + ahead["white"][k]
         for s in (0, 1):
             lsb = self._lsb[s]
             if lsb > 0.0:
@@ -392,3 +432,7 @@ class StrapdownImu(Block):
         self.f_meas_b = y[1] / h
         self.gyro_bias_b = bias_int[0] / h
         self.accel_bias_b = bias_int[1] / h
+
+
+#: Steps of random numbers (and of the input-free bias and noise terms) drawn ahead.
+AHEAD_STEPS = 64

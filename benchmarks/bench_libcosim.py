@@ -1,0 +1,107 @@
+"""Our master vs libcosim (the OSP master, through the libcosimpy wheel's C library).
+
+Both run the same four FMUs of the transfer chain (``benchmarks/transfer_chain.toml``)
+with the same 10 ms step and Jacobi coupling (libcosim's algorithm; the outputs are
+checked to agree), recording every output. libcosim runs in a child process
+(:mod:`cosim.libcosim_runner`), so each of its runs pays a process start and loads the
+FMUs anew; ours loads them in this process.
+
+The judged figure is the ratio of the *marginal* cost of a macro step, from a long and
+a one-step run of each master: ``(T(long) - T(one step)) / (steps - 1)``. That leaves
+out the fixed costs (process start, FMU loading, initialisation), which are shown in
+the info column with the whole-run times.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import cosim
+from benchmarks.monolithic import CHAIN_BLOCKS, CHAIN_SCENARIO
+from benchmarks.timing import fmu_dir, load_note
+
+#: Simulated time of the long runs [s] (libcosim takes about 2 ms per step here).
+LONG = 40.0
+
+
+def _scenario(fmus: Path, stop: float) -> cosim.Scenario:
+    sc = cosim.load_scenario(CHAIN_SCENARIO)
+    sc.use_fmus(fmus)
+    sc.settings.coupling = "jacobi"
+    sc.settings.stop = stop
+    return sc
+
+
+def _ours(fmus: Path, stop: float) -> tuple[float, cosim.RunResult]:
+    """Wall time of one whole run by our master (load FMUs, initialise, step, record)."""
+    start = time.perf_counter()
+    sc = _scenario(fmus, stop)
+    system, meta = sc.build()
+    master = cosim.Master(system, sc.settings, meta)
+    try:
+        result = master.run()
+    finally:
+        master.terminate()
+    return time.perf_counter() - start, result
+
+
+def _theirs(fmus: Path, stop: float, observe: list[tuple[str, str]]) -> tuple[float, np.ndarray]:
+    """Wall time of one whole run by libcosim (child process, FMU loading included)."""
+    from cosim.libcosim_runner import run_libcosim
+
+    start = time.perf_counter()
+    sc = _scenario(fmus, stop)
+    system, _ = sc.build()  # parameters in the FMUs' units, connections as scalars
+    for host in system.blocks.values():
+        host.terminate()
+    data = run_libcosim(
+        fmus={n: Path(s.source) for n, s in sc.blocks.items()},
+        parameters=system.parameters,
+        connections=[(c.src_block, c.src_var, c.dst_block, c.dst_var) for c in system.connections],
+        step=sc.settings.step,
+        stop=stop,
+        observe=observe,
+    )
+    return time.perf_counter() - start, data
+
+
+def bench() -> list[dict[str, Any]]:
+    """Row: marginal cost of a macro step, libcosim / ours, same FMUs and step."""
+    name = "our master vs libcosim, same 4 FMUs, 10 ms, Jacobi (speed-up)"
+    try:
+        import libcosimpy  # noqa: F401  (the wheel that ships libcosimc)
+    except ImportError:
+        return [{"name": name, "ratio": None, "target": ">= 5", "met": None,
+                 "info": "libcosimpy is not installed"}]  # fmt: skip
+    note = load_note()
+    fmus = fmu_dir(sorted(set(CHAIN_BLOCKS.values())))
+    step = cosim.load_scenario(CHAIN_SCENARIO).settings.step
+    t_ours_1, _ = _ours(fmus, step)
+    t_ours, mine = _ours(fmus, LONG)
+    observe = [tuple(n.split(".", 1)) for n in mine.names[1:]]
+    t_theirs_1, _ = _theirs(fmus, step, observe)
+    t_theirs, theirs = _theirs(fmus, LONG, observe)
+    diff = max(float(np.max(np.abs(theirs[n] - mine.data[n]))) for n in mine.names[1:])
+    n = round(LONG / step)
+    ours_step = (t_ours - t_ours_1) / (n - 1)
+    theirs_step = (t_theirs - t_theirs_1) / (n - 1)
+    ratio = theirs_step / ours_step
+    return [
+        {
+            "name": name,
+            "ratio": ratio,
+            "target": ">= 5",
+            "met": ratio >= 5.0,
+            "info": (
+                f"per macro step: libcosim {1e3 * theirs_step:.2f} ms, ours "
+                f"{1e3 * ours_step:.2f} ms; whole {LONG:g} s run (loading included): "
+                f"libcosim {t_theirs:.1f} s, ours {t_ours:.1f} s (one-step runs "
+                f"{t_theirs_1:.1f} s, {t_ours_1:.1f} s); outputs differ by {diff:.1e} at most; "
+                f"{note}"
+            ),
+        }
+    ]
