@@ -343,6 +343,8 @@ class Master:
 
         def result(status: str, error: str = "") -> RunResult:
             meta = dict(self.metadata)
+            # the seeds in force for this run (campaigns change them between runs)
+            meta["seeds"] = {b: p["seed"] for b, p in sys_.parameters.items() if "seed" in p}
             meta["master"] = {
                 "step": h,
                 "start": t0,

@@ -169,11 +169,13 @@ def test_reset_then_run_again_reproduces_the_run_and_takes_new_seeds(fmu_dir) ->
     second = master.run().data
     master.reset()
     params["gm"]["seed"] = 3
-    third = master.run().data
+    third_result = master.run()
+    third = third_result.data
     master.terminate()
     for name in first.dtype.names:
         np.testing.assert_array_equal(first[name], second[name])
     assert not np.array_equal(first["gm.x"], third["gm.x"])
+    assert third_result.metadata["seeds"] == {"gm": 3, "s": 2}
 
 
 def test_jacobi_initialisation_passes_zero_for_outputs_without_start() -> None:
