@@ -313,7 +313,7 @@ def export_ssp(scenario: Path, out: Path, fmu_dir: Path) -> None:
     help="Folder for plots and tables (default out/reproduce/PAPER).",
 )
 @click.option("--runs", type=int, default=30, show_default=True, help="Monte Carlo runs.")
-@click.option("--seed", type=int, default=2026, show_default=True, help="Campaign seed.")
+@click.option("--seed", type=int, default=2024, show_default=True, help="Campaign seed.")
 @click.option(
     "--update-readme",
     is_flag=True,
