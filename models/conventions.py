@@ -65,6 +65,7 @@ sub-steps (an integer count, never accumulated floating time).
 from __future__ import annotations
 
 import functools
+import math
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -171,6 +172,55 @@ def euler_to_dcm(rpy: ArrayLike) -> np.ndarray:
     c[..., 2, 1] = sr * cp
     c[..., 2, 2] = cr * cp
     return c
+
+
+def euler_to_dcm_3(rpy: ArrayLike) -> np.ndarray:
+    """:func:`euler_to_dcm` of one ``[roll, pitch, yaw]`` [rad] with scalar math (fast path).
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        ``C_b_n = Rz(yaw) Ry(pitch) Rx(roll)``.
+    """
+    r, p, y = np.asarray(rpy, dtype=float).tolist()
+    cr, sr = math.cos(r), math.sin(r)
+    cp, sp = math.cos(p), math.sin(p)
+    cy, sy = math.cos(y), math.sin(y)
+    return np.array(
+        [
+            [cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy],
+            [cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy],
+            [-sp, sr * cp, cr * cp],
+        ]
+    )
+
+
+def rotvec_to_dcm_3(v: ArrayLike) -> np.ndarray:
+    """:func:`rotvec_to_dcm` of one rotation vector [rad], shape (3,), with scalar math.
+
+    ``exp([v x]) = I + s1 [v x] + s2 [v x]^2`` (Rodrigues), ``s1 = sin a / a``,
+    ``s2 = (1 - cos a) / a^2``, ``a = |v|``; Taylor series below ``a = 1e-3`` rad.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+    """
+    x, y, z = np.asarray(v, dtype=float).tolist()
+    a2 = x * x + y * y + z * z
+    if a2 < 1e-6:
+        s1 = 1.0 - a2 / 6.0 + a2 * a2 / 120.0
+        s2 = 0.5 - a2 / 24.0 + a2 * a2 / 720.0
+    else:
+        a = math.sqrt(a2)
+        s1 = math.sin(a) / a
+        s2 = (1.0 - math.cos(a)) / a2
+    return np.array(
+        [
+            [1.0 - s2 * (y * y + z * z), s2 * x * y - s1 * z, s2 * x * z + s1 * y],
+            [s2 * x * y + s1 * z, 1.0 - s2 * (x * x + z * z), s2 * y * z - s1 * x],
+            [s2 * x * z - s1 * y, s2 * y * z + s1 * x, 1.0 - s2 * (x * x + y * y)],
+        ]
+    )
 
 
 def dcm_to_euler(c: ArrayLike) -> np.ndarray:

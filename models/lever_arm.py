@@ -67,6 +67,7 @@ from models.conventions import (
     StepPath,
     cross,
     euler_to_dcm,
+    euler_to_dcm_3,
     hermite_basis,
     path_basis,
     rotvec_to_dcm_and_jacobian,
@@ -198,7 +199,7 @@ class LeverArm(Block):
         """Set the step-end outputs from the slave rate and force and the flexure state."""
         self.omega_is_s = w_s.copy()
         self.f_s = f_s.copy()
-        c_b_n = _euler_to_dcm3(self.rpy)
+        c_b_n = euler_to_dcm_3(self.rpy)
         c_s_b = self._c_s_d if c_d_b is None else c_d_b @ self._c_s_d
         self.rpy_s = _dcm_to_euler3(c_b_n @ c_s_b)
         self.r_p = self._r0 + self._R0 @ th
@@ -284,21 +285,6 @@ class LeverArm(Block):
 
 #: Zero coefficient rows standing in for a path computed otherwise (fallback or rigid deck).
 _ZERO = {k: np.zeros((k, 3)) for k in (3, 4, 5)}
-
-
-def _euler_to_dcm3(rpy: np.ndarray) -> np.ndarray:
-    """:func:`models.conventions.euler_to_dcm` of one ``[roll, pitch, yaw]`` (scalar math)."""
-    r, p, y = np.asarray(rpy, dtype=float).tolist()
-    cr, sr = math.cos(r), math.sin(r)
-    cp, sp = math.cos(p), math.sin(p)
-    cy, sy = math.cos(y), math.sin(y)
-    return np.array(
-        [
-            [cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy],
-            [cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy],
-            [-sp, sr * cp, cr * cp],
-        ]
-    )
 
 
 def _dcm_to_euler3(c: np.ndarray) -> np.ndarray:

@@ -29,17 +29,16 @@ from cosim.alignment.sins_static import (
     dcm_rotvec,
     discretize_taylor,
     error_model,
-    euler_dcm,
     heading_limit,
     measurement_matrix,
     noise_input,
-    rotvec_dcm,
     table_dcm,
 )
 from cosim.blocks import InProcessHost
 from cosim.errors import SimulationError
 from cosim.estimators import observability_rank, piecewise_observability_rank, van_loan
 from cosim.master import Connection, Master, MasterSettings, System
+from models.conventions import euler_to_dcm_3, rotvec_to_dcm_3
 from models.earth import OMEGA_IE, gravity
 from models.stationary_base import StationaryBase
 from models.strapdown_imu import StrapdownImu
@@ -102,7 +101,7 @@ def _col(data: np.ndarray, name: str) -> np.ndarray:
 )
 def test_coarse_alignment_is_exact_with_a_perfect_imu(lat_deg: float, rpy_deg: tuple) -> None:
     lat = lat_deg * DEG
-    c = euler_dcm(np.array(rpy_deg) * DEG)
+    c = euler_to_dcm_3(np.array(rpy_deg) * DEG)
     f_n = np.array([0.0, 0.0, -float(gravity(lat))])
     w_n = np.array([OMEGA_IE * math.cos(lat), 0.0, -OMEGA_IE * math.sin(lat)])
     est = coarse_alignment(c.T @ f_n, c.T @ w_n, lat)
@@ -173,7 +172,7 @@ def test_coarse_alignment_errors_follow_the_theory() -> None:
     )
     d = Master(system, MasterSettings(0.1, 5.0)).run().data
     got = _col(d, "align.phi_err")[-1]
-    c = euler_dcm(rpy)
+    c = euler_to_dcm_3(rpy)
     want = coarse_error_theory(c @ accel, c @ gyro, lat) / ARCMIN
     # the heading term is -eps_E / (W cos L) ~ 9' here; second-order terms are
     # ~ (9')^2 = 7e-6 relative, so 0.5 % or 0.005' covers them
@@ -199,13 +198,13 @@ def _nonlinear_error_rate(
     psi = x[2:5]
     nab_s = c_s_t.T @ np.array([x[5], x[6], 0.0])
     eps_s = c_s_t.T @ x[7:10]
-    c_hat = rotvec_dcm(-psi) @ c_s_n
+    c_hat = rotvec_to_dcm_3(-psi) @ c_s_n
     v_hat = np.array([x[0], x[1], 0.0])
     dv_rate = c_hat @ (f_s + nab_s) + np.array([0.0, 0.0, g]) - 2.0 * np.cross(w_ie, v_hat)
 
     def psi_at(dt: float) -> np.ndarray:
-        true = rotvec_dcm(-w_ie * dt) @ c_s_n @ rotvec_dcm(w_s * dt)
-        comp = rotvec_dcm(-w_ie * dt) @ c_hat @ rotvec_dcm((w_s + eps_s) * dt)
+        true = rotvec_to_dcm_3(-w_ie * dt) @ c_s_n @ rotvec_to_dcm_3(w_s * dt)
+        comp = rotvec_to_dcm_3(-w_ie * dt) @ c_hat @ rotvec_to_dcm_3((w_s + eps_s) * dt)
         return -dcm_rotvec(comp @ true.T)
 
     dt = 1e-3
@@ -216,8 +215,8 @@ def _nonlinear_error_rate(
 @pytest.mark.parametrize("gamma_deg, mount", [(0.0, np.zeros(3)), (70.0, TILT_MOUNT)])
 def test_error_model_is_the_jacobian_of_the_mechanisation(gamma_deg: float, mount) -> None:
     lat = 45.0 * DEG
-    c_t_n = euler_dcm(np.array([0.3, -0.5, 30.0]) * DEG) @ table_dcm(gamma_deg * DEG)
-    c_s_t = euler_dcm(mount)
+    c_t_n = euler_to_dcm_3(np.array([0.3, -0.5, 30.0]) * DEG) @ table_dcm(gamma_deg * DEG)
+    c_s_t = euler_to_dcm_3(mount)
     scale = np.array([1e-2] * 2 + [1e-3] * 3 + [1e-4] * 2 + [1e-5] * 3)
     J = np.empty((10, 10))
     for j in range(10):
@@ -243,7 +242,7 @@ def test_error_model_is_the_jacobian_of_the_mechanisation(gamma_deg: float, moun
 def test_block_discretisation_matches_van_loan() -> None:
     """Phi = I + Fh + (Fh)^2/2 vs the exact one at the block's 0.1 s step."""
     lat, h = 45.0 * DEG, 0.1
-    F = error_model(euler_dcm(np.array([0.3, -0.5, 30.0]) * DEG), lat)
+    F = error_model(euler_to_dcm_3(np.array([0.3, -0.5, 30.0]) * DEG), lat)
     G = noise_input()
     Gq = G @ SEED003.Qc() @ G.T
     phi_t, qd_t = discretize_taylor(F, Gq, h)
@@ -259,7 +258,7 @@ def test_static_model_has_rank_7_and_the_heading_drift_direction_is_unobservable
     lat_deg: float, yaw_deg: float
 ) -> None:
     lat = lat_deg * DEG
-    c = euler_dcm(np.array([0.0, 0.0, yaw_deg]) * DEG)
+    c = euler_to_dcm_3(np.array([0.0, 0.0, yaw_deg]) * DEG)
     F = error_model(c, lat)
     assert observability_rank(F, H) == 7
     # psi_D = 1 with eps_n = [0, W cos L, 0] (eps_t = C^T eps_n) gives zero velocity forever
@@ -348,14 +347,14 @@ def test_strapdown_on_a_reversing_tilted_table_keeps_attitude_and_velocity() -> 
     d = Master(system, MasterSettings(h, 600.0)).run().data
     dth, dv = _col(d, "imu.dtheta_meas_b"), _col(d, "imu.dv_meas_b")
     rpy, angle = _col(d, "base.rpy"), d["table.angle"]
-    c_s_t = euler_dcm(TILT_MOUNT)
-    nav = Strapdown(euler_dcm(rpy[0]) @ table_dcm(angle[0]) @ c_s_t, lat, 0.0, c_s_t[2, :])
+    c_s_t = euler_to_dcm_3(TILT_MOUNT)
+    nav = Strapdown(euler_to_dcm_3(rpy[0]) @ table_dcm(angle[0]) @ c_s_t, lat, 0.0, c_s_t[2, :])
     worst = 0.0
     for k in range(1, len(d)):
         nav.step(dth[k], dv[k], h)
         if k % 50 == 0:
             c_b_n = nav.C_s_n @ c_s_t.T @ table_dcm(angle[k]).T
-            worst = max(worst, float(np.max(np.abs(dcm_rotvec(c_b_n @ euler_dcm(rpy[k]).T)))))
+            worst = max(worst, float(np.max(np.abs(dcm_rotvec(c_b_n @ euler_to_dcm_3(rpy[k]).T)))))
     assert worst < 0.01 * ARCMIN
     assert np.max(np.abs(nav.v_n)) < 5e-3
 

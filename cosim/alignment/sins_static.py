@@ -127,6 +127,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from cosim.estimators import KalmanFilter, van_loan
 from models.block import Block, input_, output, parameter
+from models.conventions import euler_to_dcm_3, rotvec_to_dcm_3
 from models.earth import OMEGA_IE, gravity
 
 FloatArray = NDArray[np.float64]
@@ -241,19 +242,6 @@ def _norm2(v: ArrayLike) -> float:
     return x * x + y * y + z * z
 
 
-def rotvec_dcm(v: ArrayLike) -> FloatArray:
-    """``exp([v x])`` (Rodrigues), shape (3, 3), for a rotation vector ``v`` [rad], shape (3,)."""
-    a2 = _norm2(v)
-    if a2 < 1e-6:
-        s1 = 1.0 - a2 / 6.0 + a2 * a2 / 120.0
-        s2 = 0.5 - a2 / 24.0 + a2 * a2 / 720.0
-    else:
-        a = math.sqrt(a2)
-        s1 = math.sin(a) / a
-        s2 = (1.0 - math.cos(a)) / a2
-    return _so3_poly(v, s1, s2)
-
-
 def dcm_rotvec(c: ArrayLike) -> FloatArray:
     """Rotation vector (logarithm) of a DCM, shape (3,) [rad], for angles below pi."""
     c = np.asarray(c, dtype=float)
@@ -327,23 +315,8 @@ def table_axis_coning(dtheta: ArrayLike, axis: ArrayLike) -> FloatArray:
     return np.array([k * dx + m * ax, k * dy + m * ay, k * dz + m * az])
 
 
-def euler_dcm(rpy: ArrayLike) -> FloatArray:
-    """``C_b_n = Rz(yaw) Ry(pitch) Rx(roll)`` for ``rpy = [roll, pitch, yaw]`` [rad], (3, 3)."""
-    r, p, y = np.asarray(rpy, dtype=float).tolist()
-    cr, sr = math.cos(r), math.sin(r)
-    cp, sp = math.cos(p), math.sin(p)
-    cy, sy = math.cos(y), math.sin(y)
-    return np.array(
-        [
-            [cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy],
-            [cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy],
-            [-sp, sr * cp, cr * cp],
-        ]
-    )
-
-
 def dcm_euler(c: FloatArray) -> FloatArray:
-    """``[roll, pitch, yaw]`` [rad] of ``C_b_n`` (inverse of :func:`euler_dcm`), shape (3,)."""
+    """``[roll, pitch, yaw]`` [rad] of ``C_b_n`` (inverse of :func:`models.conventions.euler_to_dcm_3`), shape (3,)."""
     return np.array(
         [
             math.atan2(c[2, 1], c[2, 2]),
@@ -663,7 +636,7 @@ def covariance_analysis(
         raise AlignmentConfigError(f"t_end = {t_end} s is not a whole number of dt = {dt} s")
     if k_upd < 1 or abs(k_upd * dt - kf_period) > 1e-9 * kf_period:
         raise AlignmentConfigError(f"kf_period = {kf_period} s is not a multiple of dt = {dt} s")
-    c_b_n = euler_dcm(base_rpy)
+    c_b_n = euler_to_dcm_3(base_rpy)
     G = noise_input()
     Qc = tuning.Qc()
     H = measurement_matrix()
@@ -758,7 +731,7 @@ class Strapdown:
         vn, ve, _ = self.v_n.tolist()
         cor = 2.0 * self._w_d * h  # -2 w_ie x v, horizontal: [2 W_D v_E, -2 W_D v_N] h
         self.v_n = np.array([vn + dv_n[0] + cor * ve, ve + dv_n[1] - cor * vn, 0.0])
-        self.C_s_n = self._rot_nav(h) @ c0 @ rotvec_dcm(phi)
+        self.C_s_n = self._rot_nav(h) @ c0 @ rotvec_to_dcm_3(phi)
         self._count += 1
         if self._count % 64 == 0:
             c = self.C_s_n
@@ -768,13 +741,13 @@ class Strapdown:
         """``exp(-[w_ie h x])`` (cached per step size)."""
         if h != self._h_nav:
             self._h_nav = h
-            self._nav_rot = rotvec_dcm(-self.w_ie * h)
+            self._nav_rot = rotvec_to_dcm_3(-self.w_ie * h)
         return self._nav_rot
 
     def correct(self, dv_n: FloatArray, psi: FloatArray) -> None:
         """Closed-loop feedback of a velocity error [m/s] (N, E) and a psi angle [rad]."""
         self.v_n = np.array([self.v_n[0] - dv_n[0], self.v_n[1] - dv_n[1], 0.0])
-        self.C_s_n = rotvec_dcm(psi) @ self.C_s_n
+        self.C_s_n = rotvec_to_dcm_3(psi) @ self.C_s_n
 
 
 # ------------------------------------------------------------------ the block
@@ -891,7 +864,7 @@ class SinsStaticAlignment(Block):
         self._check()
         self._rng = np.random.default_rng(int(self.seed))
         z = self._rng.standard_normal(3)  # always drawn: the stream does not depend on options
-        self._C_s_t = euler_dcm(self.mount_rpy)
+        self._C_s_t = euler_to_dcm_3(self.mount_rpy)
         self._axis = self._C_s_t[2, :].copy()
         tun = self.tuning()
         self._tun = tun
@@ -915,8 +888,8 @@ class SinsStaticAlignment(Block):
             offset = np.asarray(self.init_offset, dtype=float)
             if self.init_offset_random:
                 offset = offset * z
-            c_s_n = self._sensor_dcm(euler_dcm(self.rpy_true))
-            self._start_fine(rotvec_dcm(offset) @ c_s_n)
+            c_s_n = self._sensor_dcm(euler_to_dcm_3(self.rpy_true))
+            self._start_fine(rotvec_to_dcm_3(offset) @ c_s_n)
         self._publish()
 
     def _sensor_dcm(self, c_b_n: FloatArray) -> FloatArray:
@@ -1005,7 +978,7 @@ class SinsStaticAlignment(Block):
         c_b_n = self._base_dcm()
         rpy_hat = dcm_euler(c_b_n)
         rpy_true = np.asarray(self.rpy_true, dtype=float)
-        e = dcm_rotvec(c_b_n @ euler_dcm(rpy_true).T)
+        e = dcm_rotvec(c_b_n @ euler_to_dcm_3(rpy_true).T)
         P = self._kf.P
         p_att = P[2:5, 2:5]
         m = euler_error_jacobian(rpy_hat)

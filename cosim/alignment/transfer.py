@@ -192,7 +192,14 @@ from cosim.estimators import (
     van_loan,
 )
 from models.block import Block, input_, output, parameter
-from models.conventions import dcm_to_euler, dcm_to_rotvec, euler_to_dcm, rotvec_to_dcm, skew
+from models.conventions import (
+    dcm_to_euler,
+    dcm_to_rotvec,
+    euler_to_dcm,
+    rotvec_to_dcm,
+    rotvec_to_dcm_3,
+    skew,
+)
 from models.earth import OMEGA_IE, R_M, R_N, euler_motion_truth, gravity
 from models.lever_arm import r0_matrix
 
@@ -1087,7 +1094,7 @@ class SlaveStrapdown:
         dv_f = cu - 0.5 * _cross3(zeta, cu)
         cor = 2.0 * self._w_ie + w_en
         v_new = v + dv_f + (self._g - _cross3(cor, v_mid)) * h
-        c_new = _rodrigues(-zeta) @ c_old @ _rodrigues(a)
+        c_new = rotvec_to_dcm_3(-zeta) @ c_old @ rotvec_to_dcm_3(a)
         s = self.sums
         s.T += h
         s.dv_f += dv_f
@@ -1117,26 +1124,6 @@ class SlaveStrapdown:
         self.v = self.v - d_v
         self.v_prev = self.v_prev - d_v
         self.C = e_err.T @ self.C
-
-
-def _rodrigues(v: FloatArray) -> FloatArray:
-    """``exp([v x])`` of one rotation vector (shape (3,)), series below 1e-4 rad."""
-    x, y, z = float(v[0]), float(v[1]), float(v[2])
-    a2 = x * x + y * y + z * z
-    if a2 < 1e-8:
-        s1 = 1.0 - a2 / 6.0 + a2 * a2 / 120.0
-        s2 = 0.5 - a2 / 24.0 + a2 * a2 / 720.0
-    else:
-        a = math.sqrt(a2)
-        s1 = math.sin(a) / a
-        s2 = (1.0 - math.cos(a)) / a2
-    return np.array(
-        [
-            [1.0 - s2 * (y * y + z * z), s2 * x * y - s1 * z, s2 * x * z + s1 * y],
-            [s2 * x * y + s1 * z, 1.0 - s2 * (x * x + z * z), s2 * y * z - s1 * x],
-            [s2 * x * z - s1 * y, s2 * y * z + s1 * x, 1.0 - s2 * (x * x + y * y)],
-        ]
-    )
 
 
 def euler_rate_matrix_inv(rpy: ArrayLike) -> FloatArray:
