@@ -312,16 +312,21 @@ def export_ssp(scenario: Path, out: Path, fmu_dir: Path) -> None:
     default=None,
     help="Folder for plots and tables (default out/reproduce/PAPER).",
 )
-@click.option("--runs", type=int, default=30, show_default=True, help="Monte Carlo runs.")
-@click.option("--seed", type=int, default=2024, show_default=True, help="Campaign seed.")
+@click.option("--runs", type=int, default=None, help="Monte Carlo runs (default: the README's).")
+@click.option("--seed", type=int, default=None, help="Campaign seed (default: the README's).")
 @click.option(
     "--update-readme",
     is_flag=True,
     help="Write the tables into README.md between the PAPER markers.",
 )
-def reproduce(paper: str, out: Path | None, runs: int, seed: int, update_readme: bool) -> None:
+def reproduce(
+    paper: str, out: Path | None, runs: int | None, seed: int | None, update_readme: bool
+) -> None:
     """Reproduce a source paper (shared/SEEDS.md): its tables next to ours, and plots."""
     from cosim import reproduce as rep
+
+    runs = rep.DEFAULTS[paper][0] if runs is None else runs
+    seed = rep.DEFAULTS[paper][1] if seed is None else seed
 
     out = out or Path("out") / "reproduce" / paper
     try:

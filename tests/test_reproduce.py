@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pytest
 
-from cosim.reproduce import PAPERS, publish_figures, reproduce, update_readme
+from cosim.reproduce import DEFAULTS, PAPERS, publish_figures, reproduce, update_readme
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -48,3 +48,15 @@ def test_readme_figures_of_each_reproduced_paper_are_committed(paper: str) -> No
     for link in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", m.group(1)):
         assert link.startswith(f"docs/figures/{paper}/"), link
         assert (ROOT / link).is_file(), link
+
+
+@pytest.mark.parametrize("paper", PAPERS)
+def test_default_runs_and_seed_are_those_of_the_readme_block(paper: str) -> None:
+    """`ins-cosim reproduce PAPER --update-readme` without options regenerates the same block."""
+    text = (ROOT / "README.md").read_text()
+    m = re.search(rf"<!-- {paper}:begin -->\n(.*?)<!-- {paper}:end -->", text, re.S)
+    assert m is not None, f"README has no {paper} block"
+    runs, seed = DEFAULTS[paper]
+    block = m.group(1)
+    assert f"{runs} runs" in block or f"runs={runs}" in block
+    assert f"seed {seed}" in block or f"seed={seed}" in block

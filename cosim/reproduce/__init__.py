@@ -20,6 +20,13 @@ from pathlib import Path
 
 PAPERS = ("seed000", "seed001", "seed003")
 
+#: Runs and campaign seed that produced each README block (``ins-cosim reproduce`` defaults).
+DEFAULTS: dict[str, tuple[int, int]] = {
+    "seed000": (30, 2024),
+    "seed001": (30, 2011),
+    "seed003": (50, 2024),
+}
+
 
 def reproduce(name: str, out_dir: Path, runs: int, seed: int) -> str:
     """Run one paper's reproduction and return its Markdown block.
