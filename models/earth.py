@@ -29,6 +29,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
+from models.block import output
 from models.conventions import (
     cross,
     euler_accel_to_body_accel,
@@ -151,6 +152,22 @@ class ImuTruth(NamedTuple):
     omega_ib_b: np.ndarray
     omega_dot_b: np.ndarray
     f_b: np.ndarray
+
+
+#: The outputs of every motion block (the ``motion`` role of fmus/interfaces), in order:
+#: the state at the step end and the exact increments over the step.
+MOTION_OUTPUTS = (
+    output("rpy", (0.0, 0.0, 0.0), "rad", "roll, pitch, yaw of C_b_n at the step end"),
+    output("v_n", (0.0, 0.0, 0.0), "m/s", "velocity w.r.t. earth, NED"),
+    output("lat", 0.0, "rad", "latitude"),
+    output("lon", 0.0, "rad", "longitude"),
+    output("h", 0.0, "m", "height"),
+    output("omega_ib_b", (0.0, 0.0, 0.0), "rad/s", "body rate w.r.t. inertial, body axes"),
+    output("omega_dot_b", (0.0, 0.0, 0.0), "rad/s2", "time derivative of omega_ib_b"),
+    output("f_b", (0.0, 0.0, 0.0), "m/s2", "specific force, body axes"),
+    output("dtheta_b", (0.0, 0.0, 0.0), "rad", "integral of omega_ib_b over the step"),
+    output("dv_b", (0.0, 0.0, 0.0), "m/s", "integral of f_b over the step"),
+)
 
 
 def euler_motion_truth(

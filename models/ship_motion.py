@@ -38,9 +38,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from models.block import Block, output, parameter
+from models.block import Block, parameter
 from models.conventions import simpson_nodes, substeps
-from models.earth import ImuTruth, euler_motion_truth
+from models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
 
 _DEG = math.pi / 180.0
 
@@ -60,16 +60,7 @@ class ShipMotion(Block):
         parameter("lin_period", (10.0, 10.0, 10.0), "s", "surge/sway/heave period (<= 0: off)"),
         parameter("lin_phase", (0.0, 0.0, 0.0), "rad", "surge/sway/heave phase"),
         parameter("dt_truth", 1.0e-3, "s", "inner integration step for the increments"),
-        output("rpy", (0.0, 0.0, 0.0), "rad", "roll, pitch, yaw of C_b_n at the step end"),
-        output("v_n", (0.0, 0.0, 0.0), "m/s", "velocity w.r.t. earth, NED"),
-        output("lat", 0.0, "rad", "latitude"),
-        output("lon", 0.0, "rad", "longitude"),
-        output("h", 0.0, "m", "height"),
-        output("omega_ib_b", (0.0, 0.0, 0.0), "rad/s", "body rate w.r.t. inertial, body axes"),
-        output("omega_dot_b", (0.0, 0.0, 0.0), "rad/s2", "time derivative of omega_ib_b"),
-        output("f_b", (0.0, 0.0, 0.0), "m/s2", "specific force, body axes"),
-        output("dtheta_b", (0.0, 0.0, 0.0), "rad", "integral of omega_ib_b over the step"),
-        output("dv_b", (0.0, 0.0, 0.0), "m/s", "integral of f_b over the step"),
+        *MOTION_OUTPUTS,
     )
     default_stop = 2.0
 

@@ -37,9 +37,9 @@ import math
 
 import numpy as np
 
-from models.block import Block, output, parameter
+from models.block import Block, parameter
 from models.conventions import substeps
-from models.earth import ImuTruth, euler_motion_truth
+from models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
 from models.gauss_markov import discretize_gm2
 
 _DEG = math.pi / 180.0
@@ -70,16 +70,7 @@ class StationaryBase(Block):
         parameter("jitter_order", 2, description="Gauss-Markov order of the jitter (1 or 2)"),
         parameter("seed", 0, description="random seed of the jitter"),
         parameter("dt_truth", 1.0e-3, "s", "inner integration step"),
-        output("rpy", (0.0, 0.0, 0.0), "rad", "roll, pitch, yaw of C_b_n at the step end"),
-        output("v_n", (0.0, 0.0, 0.0), "m/s", "velocity w.r.t. earth, NED"),
-        output("lat", 0.0, "rad", "latitude"),
-        output("lon", 0.0, "rad", "longitude"),
-        output("h", 0.0, "m", "height"),
-        output("omega_ib_b", (0.0, 0.0, 0.0), "rad/s", "body rate w.r.t. inertial, body axes"),
-        output("omega_dot_b", (0.0, 0.0, 0.0), "rad/s2", "time derivative of omega_ib_b"),
-        output("f_b", (0.0, 0.0, 0.0), "m/s2", "specific force, body axes"),
-        output("dtheta_b", (0.0, 0.0, 0.0), "rad", "integral of omega_ib_b over the step"),
-        output("dv_b", (0.0, 0.0, 0.0), "m/s", "integral of f_b over the step"),
+        *MOTION_OUTPUTS,
     )
     default_stop = 2.0
 
