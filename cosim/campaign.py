@@ -694,7 +694,7 @@ def prepare(scenario: str | Path, fmu_dir: str | Path | None = None) -> Prepared
     system, metadata = sc.build()
     try:
         master = Master(system, sc.settings, metadata)
-        master._warn_loops()  # once here; the workers run silently
+        master.warn_loops()  # once here; the workers run silently
         outputs = [
             f"{b}.{v.name}"
             for b, h in system.blocks.items()

@@ -126,7 +126,7 @@ def check(scenario: Path, fmu_dir: Path | None) -> None:
         system, meta = sc.build()
         try:
             master = Master(system, sc.settings, meta)
-            master._warn_loops()
+            master.warn_loops()
         finally:
             for host in system.blocks.values():
                 host.terminate()

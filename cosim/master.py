@@ -302,7 +302,11 @@ class Master:
         self.record = record
         self._record_idx = np.array([slots[r] for r in record], dtype=int)
 
-    def _warn_loops(self) -> None:
+    def warn_loops(self) -> None:
+        """Warn (:class:`CouplingWarning`) once per feedback loop broken by a delay.
+
+        :meth:`run` calls it; ``ins-cosim check`` and campaigns call it without running.
+        """
         if self.settings.coupling != GAUSS_SEIDEL:
             return
         for loop in self.loops:
@@ -329,7 +333,7 @@ class Master:
             A block failed or produced a non-finite output; ``error.result`` holds the
             recording up to the last completed macro step.
         """
-        self._warn_loops()
+        self.warn_loops()
         s = self.settings
         sys_ = self.system
         h, t0, n_steps = s.step, s.start, s.n_steps
