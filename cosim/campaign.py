@@ -218,6 +218,56 @@ def run_seeds(campaign_seed: int, index: int, blocks: Sequence[str]) -> dict[str
     return {b: int(s) >> _SEED_SHIFT for b, s in zip(blocks, state, strict=False)}
 
 
+def latin_hypercube_normal(runs: int, dims: int, campaign_seed: int, stream: int = 0) -> np.ndarray:
+    """Standard normal draws for a campaign, stratified per dimension (Latin hypercube).
+
+    Each column splits the probability axis into ``runs`` equal strata and puts exactly
+    one run in each, at a uniform position inside it, in a random order; the draw is
+    ``z = Phi^-1(u)``. Every run's row is still marginally ``N(0, I)``, but the campaign's
+    sample moments are far closer to the population's than with independent draws: for
+    30 runs the mean square of a column spreads by about +-9 % (1 sigma) instead of
+    +-26 % (``sqrt(2 / 30)``). Use it for turn-on errors whose spread dominates a
+    campaign statistic (a sensor bias the motion cannot separate), so that the campaign
+    measures the filter and not the luck of the draw.
+
+    The generator is ``SeedSequence(campaign_seed, spawn_key=(2**63, stream))``: a
+    two-element spawn key, never equal to a run's ``(index,)`` of :func:`run_seeds`.
+
+    Parameters
+    ----------
+    runs : int
+        Number of runs (strata per dimension), >= 1.
+    dims : int
+        Number of independent standard normal variables per run, >= 1.
+    campaign_seed : int
+        Non-negative campaign seed.
+    stream : int
+        Independent design number for the same campaign seed (>= 0).
+
+    Returns
+    -------
+    ndarray, shape (runs, dims)
+        Row ``i``: the draws of run ``i`` (dimensionless; scale by the sigmas).
+
+    Raises
+    ------
+    ValueError
+        ``runs`` or ``dims`` below 1, or a negative seed or stream.
+    """
+    if int(runs) < 1 or int(dims) < 1:
+        raise ValueError(f"runs and dims: expected >= 1, got {runs} and {dims}")
+    if int(campaign_seed) < 0 or int(stream) < 0:
+        raise ValueError(f"campaign_seed, stream: expected >= 0, got {campaign_seed}, {stream}")
+    from scipy.special import ndtri
+
+    seq = np.random.SeedSequence(int(campaign_seed), spawn_key=(2**63, int(stream)))
+    rng = np.random.default_rng(seq)
+    n, d = int(runs), int(dims)
+    strata = np.argsort(rng.random((d, n)), axis=1).T  # one permutation per column
+    u = (strata + rng.random((n, d))) / n
+    return ndtri(u)
+
+
 # ----------------------------------------------------------------------- run records
 @dataclass
 class RunRecord:
