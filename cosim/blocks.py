@@ -111,7 +111,18 @@ class BlockHost(abc.ABC):
 
     # -- metadata ---------------------------------------------------------
     def by_causality(self, causality: str) -> list[Variable]:
-        """Variables with the given causality, in declaration order."""
+        """Variables with the given causality, in declaration order.
+
+        Parameters
+        ----------
+        causality : str
+            FMI causality: ``"parameter"``, ``"input"``, ``"output"``, ``"local"``, ...
+
+        Returns
+        -------
+        list of Variable
+            Scalars (vector elements ``x[i]`` one by one).
+        """
         return [v for v in self.variables.values() if v.causality == causality]
 
     def rename(self, mapping: Mapping[str, str]) -> None:
@@ -151,15 +162,42 @@ class BlockHost(abc.ABC):
 
     @abc.abstractmethod
     def do_step(self, t: float, h: float) -> None:
-        """Advance from ``t`` to ``t + h``; raise :class:`BlockCallError` when the block fails."""
+        """Advance from ``t`` to ``t + h``; raise :class:`BlockCallError` when the block fails.
+
+        Parameters
+        ----------
+        t : float
+            Communication point at the start of the step [s].
+        h : float
+            Communication step size [s], > 0.
+        """
 
     @abc.abstractmethod
     def get_real(self, vrs: list[int]) -> list[float]:
-        """Current values of Real variables."""
+        """Current values of Real variables.
+
+        Parameters
+        ----------
+        vrs : list of int
+            Value references (:attr:`Variable.vr`).
+
+        Returns
+        -------
+        list of float
+            One value per reference, in order, in each variable's declared unit.
+        """
 
     @abc.abstractmethod
     def set_real(self, vrs: list[int], values: list[float]) -> None:
-        """Set Real variables (inputs, or parameters during setup)."""
+        """Set Real variables (inputs, or parameters during setup).
+
+        Parameters
+        ----------
+        vrs : list of int
+            Value references (:attr:`Variable.vr`).
+        values : list of float
+            One value per reference, in each variable's declared unit.
+        """
 
     @abc.abstractmethod
     def reset(self) -> None:
@@ -176,7 +214,15 @@ class BlockHost(abc.ABC):
 
 
 class BlockCallError(Exception):
-    """A block reported failure in a call; ``call`` names the call, message the reason."""
+    """A block reported failure in a call; ``call`` names the call, message the reason.
+
+    Parameters
+    ----------
+    call : str
+        The protocol or FMI call that failed (``"do_step"``, ``"fmi3DoStep"``, ...).
+    message : str
+        The reason (the exception or the FMU's log).
+    """
 
     def __init__(self, call: str, message: str) -> None:
         self.call = call

@@ -331,7 +331,19 @@ class RunRecord:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any], history: dict[str, np.ndarray]) -> RunRecord:
-        """Inverse of :meth:`to_dict`."""
+        """Inverse of :meth:`to_dict`.
+
+        Parameters
+        ----------
+        d : dict
+            The run's JSON record (``runs/run_NNNNN.json``).
+        history : dict
+            Its decimated histories (``runs/run_NNNNN.npz``): name -> array, shape (m,).
+
+        Returns
+        -------
+        RunRecord
+        """
         metrics = {
             k: None if m is None else RunMetric(float(m["value"]), m["passed"], m["note"])
             for k, m in d["metrics"].items()
@@ -697,7 +709,19 @@ class Campaign:
         return [r for r in self.records if r.failed]
 
     def metric_values(self, req: Requirement) -> np.ndarray:
-        """Per-run metrics of a requirement, shape (runs,), nan for failed or undecided runs."""
+        """Per-run metrics of a requirement.
+
+        Parameters
+        ----------
+        req : Requirement
+            One of :attr:`requirements`.
+
+        Returns
+        -------
+        ndarray, shape (runs,)
+            Metric per run in the requirement's metric unit; nan for failed or undecided
+            runs.
+        """
         out = np.full(len(self.records), math.nan)
         for i, rec in enumerate(self.records):
             m = rec.metrics.get(req.id)
@@ -708,7 +732,21 @@ class Campaign:
 
 @dataclass
 class Prepared:
-    """A checked scenario, ready for a campaign (see :func:`prepare`)."""
+    """A checked scenario, ready for a campaign (see :func:`prepare`).
+
+    Attributes
+    ----------
+    scenario : Scenario
+        The loaded scenario.
+    settings : CampaignSettings
+        Its ``[campaign]`` table.
+    requirements : list of Requirement
+        Its ``[[requirements]]``, checked against the built system.
+    seeded : list of str
+        Blocks with a ``seed`` parameter that the campaign draws, in file order.
+    metadata : dict
+        Provenance (scenario hash, FMU hashes, versions) recorded with the campaign.
+    """
 
     scenario: Scenario
     settings: CampaignSettings
@@ -1025,7 +1063,19 @@ def software_versions() -> dict[str, str]:
 
 
 def metrics_columns(campaign: Campaign) -> list[str]:
-    """Header of the metrics table."""
+    """Header of the metrics table.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        A finished (or resumed) campaign.
+
+    Returns
+    -------
+    list of str
+        ``run``, ``status``, one ``seed.<block>`` per drawn block, the metric and pass
+        columns of every requirement, ``error``.
+    """
     seeds = [f"seed.{b}" for b in campaign.provenance["randomized_blocks"]]
     per_req: list[str] = []
     for r in campaign.requirements:
@@ -1034,7 +1084,18 @@ def metrics_columns(campaign: Campaign) -> list[str]:
 
 
 def metrics_rows(campaign: Campaign) -> Iterable[list[Any]]:
-    """Rows of the metrics table (see :func:`metrics_columns`), one per run."""
+    """Rows of the metrics table (see :func:`metrics_columns`), one per run.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        A finished (or resumed) campaign.
+
+    Yields
+    ------
+    list
+        One row per run, in run order.
+    """
     for rec in campaign.records:
         row: list[Any] = [rec.index, rec.status]
         row += [rec.seeds.get(b, "") for b in campaign.provenance["randomized_blocks"]]

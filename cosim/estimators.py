@@ -470,8 +470,11 @@ def piecewise_observability_rank(
         See :func:`piecewise_observability_matrix`.
     method : {"total", "stripped"}
         TOM (exact) or SOM.
-    tol, normalize
-        As in :func:`observability_rank`.
+    tol : float, optional
+        Singular-value threshold, as in :func:`observability_rank` (default numpy's).
+    normalize : bool
+        Scale every column to unit norm before the SVD, as in :func:`observability_rank`
+        (default True).
 
     Returns
     -------
@@ -595,7 +598,18 @@ def anees_bounds(dim: int, n_runs: int, confidence: float = 0.95) -> tuple[float
 # Angles
 # ----------------------------------------------------------------------------------------
 def wrap_angle(a: ArrayLike) -> FloatArray:
-    """Wrap angles [rad] to the interval (-pi, pi]."""
+    """Wrap angles [rad] to the interval (-pi, pi].
+
+    Parameters
+    ----------
+    a : array_like, any shape
+        Angles [rad].
+
+    Returns
+    -------
+    ndarray, same shape as ``a``
+        ``a`` plus multiples of ``2 pi``, in (-pi, pi] [rad].
+    """
     a = np.asarray(a, dtype=float)
     return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
 
@@ -1610,9 +1624,15 @@ class UnscentedParticleFilter:
         See above.
     weight_rule : {"full", "likelihood"}
         See above (only for ``proposal="sample"``).
-    residual_x, residual_z, x_mean_fn, z_mean_fn, vectorized
-        As in :class:`UnscentedKalmanFilter`; ``x_mean_fn`` also forms the weighted
-        particle mean.
+    residual_x, residual_z : callable ``(a, b) -> a - b``, optional
+        Broadcasting differences of states / measurements, as in
+        :class:`UnscentedKalmanFilter` (angles: :func:`angle_residual_fn`).
+    x_mean_fn, z_mean_fn : callable ``(sigmas, Wm) -> mean``, optional
+        Weighted means, as in :class:`UnscentedKalmanFilter` (angles:
+        :func:`angle_mean_fn`); ``x_mean_fn`` also forms the weighted particle mean.
+    vectorized : bool
+        Whether ``fx`` and ``hx`` take stacked points (default True); False calls them
+        per point with shape ``(n,)``.
 
     Attributes
     ----------

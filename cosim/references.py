@@ -75,6 +75,12 @@ def reference_run(cls: type) -> np.ndarray:
 def write_all(out_dir: Path = REFERENCE_DIR) -> list[Path]:
     """Rewrite the reference file of every model.
 
+    Parameters
+    ----------
+    out_dir : Path
+        Folder for the ``<Model>.csv`` files (created if missing); default
+        ``models/reference``.
+
     Returns
     -------
     list of Path

@@ -62,6 +62,13 @@ class RunResult:
     def save(self, out_dir: Path, stem: str = "results") -> tuple[Path, Path]:
         """Write ``<stem>.csv`` and ``<stem>.json`` into ``out_dir``.
 
+        Parameters
+        ----------
+        out_dir : Path
+            Folder, created if missing; existing files of the same stem are overwritten.
+        stem : str
+            File name without suffix (default ``"results"``).
+
         Returns
         -------
         (Path, Path)
@@ -89,7 +96,18 @@ class RunResult:
 
     @classmethod
     def load(cls, csv: Path) -> RunResult:
-        """Read a result written by :meth:`save` (the ``.json`` beside it is optional)."""
+        """Read a result written by :meth:`save` (the ``.json`` beside it is optional).
+
+        Parameters
+        ----------
+        csv : Path
+            The ``<stem>.csv`` file; metadata, status and error come from
+            ``<stem>.json`` beside it when it exists.
+
+        Returns
+        -------
+        RunResult
+        """
         csv = Path(csv)
         names = csv.read_text().split("\n", 1)[0].strip().split(",")
         raw = np.loadtxt(csv, delimiter=",", skiprows=1, ndmin=2)

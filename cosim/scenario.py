@@ -116,7 +116,20 @@ class Scenario:
     raw: dict[str, Any]
 
     def error(self, message: str, key: str | None = None) -> ScenarioError:
-        """A :class:`ScenarioError` located in this file."""
+        """A :class:`ScenarioError` located in this file.
+
+        Parameters
+        ----------
+        message : str
+            What is wrong and how to fix it.
+        key : str, optional
+            The TOML key (dotted path) where the problem is.
+
+        Returns
+        -------
+        ScenarioError
+            To be raised by the caller.
+        """
         return ScenarioError(message, file=str(self.path), key=key)
 
     def use_fmus(self, fmu_dir: str | Path) -> None:

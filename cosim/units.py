@@ -81,7 +81,18 @@ class Unit:
     origin: str = "name"
 
     def compatible(self, other: Unit) -> bool:
-        """True when both units measure the same physical quantity."""
+        """True when both units measure the same physical quantity.
+
+        Parameters
+        ----------
+        other : Unit
+            The unit to compare with (angles count as a dimension: ``rad`` and ``1``
+            are not compatible).
+
+        Returns
+        -------
+        bool
+        """
         return self.dimension == other.dimension
 
     def si_text(self) -> str:
@@ -193,7 +204,22 @@ def unit_from_fmi(
 
 
 def resolve_unit(unit: str | Unit) -> Unit:
-    """``unit`` itself when it is a :class:`Unit`, else :func:`parse_unit` of the text."""
+    """``unit`` itself when it is a :class:`Unit`, else :func:`parse_unit` of the text.
+
+    Parameters
+    ----------
+    unit : str or Unit
+        Unit text (e.g. ``"deg/h"``) or an already resolved unit.
+
+    Returns
+    -------
+    Unit
+
+    Raises
+    ------
+    UnitError
+        If the text is not a known unit.
+    """
     return unit if isinstance(unit, Unit) else parse_unit(unit)
 
 
@@ -284,6 +310,19 @@ def to_unit(value: Any, unit: str | Unit) -> float | int | bool | list[float]:
 
 
 def si(value: Any, unit: str | Unit) -> np.ndarray:
-    """Convert a value in ``unit`` to SI base units (helper for tests and reports)."""
+    """Convert a value in ``unit`` to SI base units (helper for tests and reports).
+
+    Parameters
+    ----------
+    value : float or array_like
+        Value(s) in ``unit``.
+    unit : str or Unit
+        Their unit, e.g. ``"deg/h"`` (affine units such as degC get their offset).
+
+    Returns
+    -------
+    ndarray, same shape as ``value``
+        ``factor * value + offset`` in SI base units (angles in rad).
+    """
     u = resolve_unit(unit)
     return np.asarray(value, dtype=float) * u.factor + u.offset

@@ -98,17 +98,74 @@ class Var:
 
 
 def parameter(name: str, start: Any, unit: str = "1", description: str = "") -> Var:
-    """Declare a fixed parameter (set before initialisation, constant afterwards)."""
+    """Declare a fixed parameter (set before initialisation, constant afterwards).
+
+    Parameters
+    ----------
+    name : str
+        Attribute name on the model (a Python identifier); vectors become the FMI
+        scalars ``name[1]`` .. ``name[n]``.
+    start : float, int, bool or tuple
+        Start value, the default a scenario may override. Its type sets the FMI type
+        (Real, Integer, Boolean); a tuple makes a vector of that length.
+    unit : str
+        SI unit (a key of :data:`UNIT_BASE` or any other name), ``"1"`` when
+        dimensionless.
+    description : str
+        One line for the model description.
+
+    Returns
+    -------
+    Var
+    """
     return Var(name, "parameter", start, unit, description)
 
 
 def input_(name: str, start: Any = 0.0, unit: str = "1", description: str = "") -> Var:
-    """Declare a continuous input (set by the master before each step)."""
+    """Declare a continuous input (set by the master before each step).
+
+    Parameters
+    ----------
+    name : str
+        Attribute name on the model (a Python identifier); vectors become the FMI
+        scalars ``name[1]`` .. ``name[n]``.
+    start : float, int, bool or tuple
+        Start value, used until a connection sets the input. Its type sets the FMI
+        type (Real, Integer, Boolean); a tuple makes a vector of that length.
+    unit : str
+        SI unit (a key of :data:`UNIT_BASE` or any other name), ``"1"`` when
+        dimensionless.
+    description : str
+        One line for the model description.
+
+    Returns
+    -------
+    Var
+    """
     return Var(name, "input", start, unit, description)
 
 
 def output(name: str, start: Any = 0.0, unit: str = "1", description: str = "") -> Var:
-    """Declare an output (valid at the end of each step, and at t0 after initialisation)."""
+    """Declare an output (valid at the end of each step, and at t0 after initialisation).
+
+    Parameters
+    ----------
+    name : str
+        Attribute name on the model (a Python identifier); vectors become the FMI
+        scalars ``name[1]`` .. ``name[n]``.
+    start : float, int, bool or tuple
+        Start value, until :meth:`Block.initialize` sets the output. Its type sets
+        the FMI type (Real, Integer, Boolean); a tuple makes a vector of that length.
+    unit : str
+        SI unit (a key of :data:`UNIT_BASE` or any other name), ``"1"`` when
+        dimensionless.
+    description : str
+        One line for the model description.
+
+    Returns
+    -------
+    Var
+    """
     return Var(name, "output", start, unit, description)
 
 
@@ -195,12 +252,37 @@ class Block(Fmi2Slave):
     def setup_experiment(
         self, start_time: float, stop_time: float | None = None, tolerance: float | None = None
     ) -> None:
+        """FMI ``setupExperiment``: store the start time for :meth:`initialize`.
+
+        Parameters
+        ----------
+        start_time : float
+            Start time t0 of the experiment [s].
+        stop_time : float, optional
+            Stop time [s]; not used.
+        tolerance : float, optional
+            Relative tolerance; not used.
+        """
         self.start_time = float(start_time)
 
     def exit_initialization_mode(self) -> None:
         self.initialize()
 
     def do_step(self, current_time: float, step_size: float) -> bool:
+        """FMI ``doStep``: :meth:`step` from ``current_time`` to ``current_time + step_size``.
+
+        Parameters
+        ----------
+        current_time : float
+            Communication point at the start of the step [s].
+        step_size : float
+            Communication step size [s], > 0.
+
+        Returns
+        -------
+        bool
+            Always True (a failing :meth:`step` raises instead).
+        """
         self.step(current_time, step_size)
         return True
 
@@ -348,7 +430,20 @@ class Block(Fmi2Slave):
         return get, set_
 
     def to_xml(self, model_options: dict[str, str] | None = None) -> Element:
-        """Model description: pythonfmu's, plus unit definitions and a default experiment."""
+        """Model description: pythonfmu's, plus unit definitions and a default experiment.
+
+        Parameters
+        ----------
+        model_options : dict of str to str, optional
+            pythonfmu's FMU model options (capability flags such as
+            ``canHandleVariableCommunicationStepSize``); None for pythonfmu's defaults.
+
+        Returns
+        -------
+        xml.etree.ElementTree.Element
+            The ``fmiModelDescription`` root, with ``UnitDefinitions`` after
+            ``CoSimulation`` when a Real variable has a unit other than ``"1"``.
+        """
         from pythonfmu.default_experiment import DefaultExperiment
 
         self.default_experiment = DefaultExperiment(

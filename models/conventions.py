@@ -81,6 +81,17 @@ def vec3(x: ArrayLike, y: ArrayLike, z: ArrayLike) -> np.ndarray:
     """Stack components into vectors, shape (..., 3) (a fast ``np.stack``).
 
     ``x`` sets the shape; ``y`` and ``z`` must broadcast to it.
+
+    Parameters
+    ----------
+    x : array_like, shape (...)
+        First components; sets the leading shape.
+    y, z : array_like, broadcastable to ``x``'s shape
+        Second and third components (same unit and frame as ``x``).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
     """
     x = np.asarray(x, dtype=float)
     out = np.empty(x.shape + (3,))
@@ -91,7 +102,18 @@ def vec3(x: ArrayLike, y: ArrayLike, z: ArrayLike) -> np.ndarray:
 
 
 def cross(a: ArrayLike, b: ArrayLike) -> np.ndarray:
-    """Cross product of vectors along the last axis, shape (..., 3) (fast ``np.cross``)."""
+    """Cross product of vectors along the last axis, shape (..., 3) (fast ``np.cross``).
+
+    Parameters
+    ----------
+    a, b : array_like, shape (..., 3)
+        Vectors resolved in the same frame; leading axes broadcast.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        ``a x b`` in that frame (unit: the product of the units).
+    """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
     return vec3(
@@ -126,19 +148,49 @@ def skew(v: ArrayLike) -> np.ndarray:
 
 
 def rot_x(a: float) -> np.ndarray:
-    """Elementary rotation about x: ``Rx(a) = [[1, 0, 0], [0, c, -s], [0, s, c]]``."""
+    """Elementary rotation about x: ``Rx(a) = [[1, 0, 0], [0, c, -s], [0, s, c]]``.
+
+    Parameters
+    ----------
+    a : float
+        Angle, right-handed about x [rad].
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+    """
     c, s = np.cos(a), np.sin(a)
     return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
 
 
 def rot_y(a: float) -> np.ndarray:
-    """Elementary rotation about y: ``Ry(a) = [[c, 0, s], [0, 1, 0], [-s, 0, c]]``."""
+    """Elementary rotation about y: ``Ry(a) = [[c, 0, s], [0, 1, 0], [-s, 0, c]]``.
+
+    Parameters
+    ----------
+    a : float
+        Angle, right-handed about y [rad].
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+    """
     c, s = np.cos(a), np.sin(a)
     return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 def rot_z(a: float) -> np.ndarray:
-    """Elementary rotation about z: ``Rz(a) = [[c, -s, 0], [s, c, 0], [0, 0, 1]]``."""
+    """Elementary rotation about z: ``Rz(a) = [[c, -s, 0], [s, c, 0], [0, 0, 1]]``.
+
+    Parameters
+    ----------
+    a : float
+        Angle, right-handed about z [rad].
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+    """
     c, s = np.cos(a), np.sin(a)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
@@ -177,6 +229,11 @@ def euler_to_dcm(rpy: ArrayLike) -> np.ndarray:
 def euler_to_dcm_3(rpy: ArrayLike) -> np.ndarray:
     """:func:`euler_to_dcm` of one ``[roll, pitch, yaw]`` [rad] with scalar math (fast path).
 
+    Parameters
+    ----------
+    rpy : array_like, shape (3,)
+        ``[roll, pitch, yaw]`` of ``C_b_n`` (Z-Y-X) [rad].
+
     Returns
     -------
     ndarray, shape (3, 3)
@@ -200,6 +257,11 @@ def rotvec_to_dcm_3(v: ArrayLike) -> np.ndarray:
 
     ``exp([v x]) = I + s1 [v x] + s2 [v x]^2`` (Rodrigues), ``s1 = sin a / a``,
     ``s2 = (1 - cos a) / a^2``, ``a = |v|``; Taylor series below ``a = 1e-3`` rad.
+
+    Parameters
+    ----------
+    v : array_like, shape (3,)
+        Rotation vector [rad] (angle ``|v|`` about the axis ``v / |v|``).
 
     Returns
     -------
@@ -344,14 +406,35 @@ def quat_multiply(p: ArrayLike, q: ArrayLike) -> np.ndarray:
 
 
 def quat_conjugate(q: ArrayLike) -> np.ndarray:
-    """Conjugate ``[q0, -q1, -q2, -q3]`` (the inverse of a unit quaternion), shape (..., 4)."""
+    """Conjugate ``[q0, -q1, -q2, -q3]`` (the inverse of a unit quaternion), shape (..., 4).
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+        Scalar-first quaternion(s), e.g. ``q_b_n`` (its conjugate is ``q_n_b``).
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        A new array (``q`` is not modified).
+    """
     q = np.array(q, dtype=float)
     q[..., 1:] *= -1.0
     return q
 
 
 def quat_normalize(q: ArrayLike) -> np.ndarray:
-    """Unit quaternion ``q / |q|``, shape (..., 4); the sign is kept."""
+    """Unit quaternion ``q / |q|``, shape (..., 4); the sign is kept.
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+        Scalar-first quaternion(s), non-zero.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+    """
     q = np.asarray(q, dtype=float)
     return q / np.linalg.norm(q, axis=-1, keepdims=True)
 
@@ -428,12 +511,34 @@ def dcm_to_quat(c: ArrayLike) -> np.ndarray:
 
 
 def euler_to_quat(rpy: ArrayLike) -> np.ndarray:
-    """``q_b_n`` from Euler angles ``[roll, pitch, yaw]``, shape (..., 4), ``q0 >= 0``."""
+    """``q_b_n`` from Euler angles ``[roll, pitch, yaw]``, shape (..., 4), ``q0 >= 0``.
+
+    Parameters
+    ----------
+    rpy : array_like, shape (..., 3)
+        Z-Y-X Euler angles ``[roll, pitch, yaw]`` of ``C_b_n`` [rad].
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        ``q_b_n``, scalar first.
+    """
     return dcm_to_quat(euler_to_dcm(rpy))
 
 
 def quat_to_euler(q: ArrayLike) -> np.ndarray:
-    """Euler angles ``[roll, pitch, yaw]`` [rad] from ``q_b_n``, shape (..., 3)."""
+    """Euler angles ``[roll, pitch, yaw]`` [rad] from ``q_b_n``, shape (..., 3).
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+        Scalar-first unit quaternion(s) ``q_b_n``.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        ``[roll, pitch, yaw]`` [rad], as :func:`dcm_to_euler`.
+    """
     return dcm_to_euler(quat_to_dcm(q))
 
 
@@ -470,7 +575,18 @@ def rotvec_to_dcm(phi: ArrayLike) -> np.ndarray:
 
 
 def rotvec_to_quat(phi: ArrayLike) -> np.ndarray:
-    """Quaternion of a rotation vector: ``[cos(a/2), sin(a/2) phi / a]``, shape (..., 4)."""
+    """Quaternion of a rotation vector: ``[cos(a/2), sin(a/2) phi / a]``, shape (..., 4).
+
+    Parameters
+    ----------
+    phi : array_like, shape (..., 3)
+        Rotation vector(s) [rad], ``a = |phi|``.
+
+    Returns
+    -------
+    ndarray, shape (..., 4)
+        Scalar-first unit quaternion(s) of ``exp([phi x])``.
+    """
     phi = np.asarray(phi, dtype=float)
     a = np.linalg.norm(phi, axis=-1)
     small = a < 1e-4
@@ -480,7 +596,18 @@ def rotvec_to_quat(phi: ArrayLike) -> np.ndarray:
 
 
 def quat_to_rotvec(q: ArrayLike) -> np.ndarray:
-    """Rotation vector of a unit quaternion (angle in [0, pi]), shape (..., 3)."""
+    """Rotation vector of a unit quaternion (angle in [0, pi]), shape (..., 3).
+
+    Parameters
+    ----------
+    q : array_like, shape (..., 4)
+        Scalar-first unit quaternion(s); ``q`` and ``-q`` give the same result.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Rotation vector(s) [rad].
+    """
     q = np.asarray(q, dtype=float)
     q = np.where(q[..., :1] < 0.0, -q, q)
     v = q[..., 1:]
@@ -492,7 +619,18 @@ def quat_to_rotvec(q: ArrayLike) -> np.ndarray:
 
 
 def dcm_to_rotvec(c: ArrayLike) -> np.ndarray:
-    """Rotation vector (logarithm) of a DCM, shape (..., 3); inverse of :func:`rotvec_to_dcm`."""
+    """Rotation vector (logarithm) of a DCM, shape (..., 3); inverse of :func:`rotvec_to_dcm`.
+
+    Parameters
+    ----------
+    c : array_like, shape (..., 3, 3)
+        Orthonormal DCM(s).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Rotation vector(s) [rad], angle in [0, pi].
+    """
     return quat_to_rotvec(dcm_to_quat(c))
 
 
@@ -559,33 +697,99 @@ def rotvec_to_dcm_and_jacobian(phi: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
 
 # ------------------------------------------------------------------ ENU <-> NED
 def enu_to_ned(v: ArrayLike) -> np.ndarray:
-    """ENU vector(s) to NED, shape (..., 3): ``[e, n, u] -> [n, e, -u]``."""
+    """ENU vector(s) to NED, shape (..., 3): ``[e, n, u] -> [n, e, -u]``.
+
+    Parameters
+    ----------
+    v : array_like, shape (..., 3)
+        Vector(s) resolved in ENU (any unit).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        The same vector(s) resolved in NED.
+    """
     v = np.asarray(v, dtype=float)
     return vec3(v[..., 1], v[..., 0], -v[..., 2])
 
 
 def ned_to_enu(v: ArrayLike) -> np.ndarray:
-    """NED vector(s) to ENU, shape (..., 3): ``[n, e, d] -> [e, n, -d]``."""
+    """NED vector(s) to ENU, shape (..., 3): ``[n, e, d] -> [e, n, -d]``.
+
+    Parameters
+    ----------
+    v : array_like, shape (..., 3)
+        Vector(s) resolved in NED (any unit).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        The same vector(s) resolved in ENU.
+    """
     return enu_to_ned(v)
 
 
 def rfu_to_frd(v: ArrayLike) -> np.ndarray:
-    """Body vector(s) from RFU (right, forward, up) to FRD axes, shape (..., 3)."""
+    """Body vector(s) from RFU (right, forward, up) to FRD axes, shape (..., 3).
+
+    Parameters
+    ----------
+    v : array_like, shape (..., 3)
+        Vector(s) resolved in RFU body axes (any unit).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        The same vector(s) resolved in FRD: ``[f, r, -u]``.
+    """
     return enu_to_ned(v)
 
 
 def frd_to_rfu(v: ArrayLike) -> np.ndarray:
-    """Body vector(s) from FRD to RFU (right, forward, up) axes, shape (..., 3)."""
+    """Body vector(s) from FRD to RFU (right, forward, up) axes, shape (..., 3).
+
+    Parameters
+    ----------
+    v : array_like, shape (..., 3)
+        Vector(s) resolved in FRD body axes (any unit).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        The same vector(s) resolved in RFU: ``[r, f, -d]``.
+    """
     return enu_to_ned(v)
 
 
 def dcm_enu_to_ned(c_rfu_enu: ArrayLike) -> np.ndarray:
-    """``C_frd_ned = T @ C_rfu_enu @ T`` (RFU-to-ENU attitude to FRD-to-NED), shape (..., 3, 3)."""
+    """``C_frd_ned = T @ C_rfu_enu @ T`` (RFU-to-ENU attitude to FRD-to-NED), shape (..., 3, 3).
+
+    Parameters
+    ----------
+    c_rfu_enu : array_like, shape (..., 3, 3)
+        Attitude DCM(s) from RFU body axes to ENU.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        ``C_frd_ned``, the same attitude from FRD body axes to NED.
+    """
     return T_NED_ENU @ np.asarray(c_rfu_enu, dtype=float) @ T_NED_ENU
 
 
 def dcm_ned_to_enu(c_frd_ned: ArrayLike) -> np.ndarray:
-    """``C_rfu_enu = T @ C_frd_ned @ T`` (inverse of :func:`dcm_enu_to_ned`), shape (..., 3, 3)."""
+    """``C_rfu_enu = T @ C_frd_ned @ T`` (inverse of :func:`dcm_enu_to_ned`), shape (..., 3, 3).
+
+    Parameters
+    ----------
+    c_frd_ned : array_like, shape (..., 3, 3)
+        Attitude DCM(s) from FRD body axes to NED.
+
+    Returns
+    -------
+    ndarray, shape (..., 3, 3)
+        ``C_rfu_enu``, the same attitude from RFU body axes to ENU.
+    """
     return dcm_enu_to_ned(c_frd_ned)
 
 
@@ -609,14 +813,39 @@ def enu_euler_to_rpy(pitch: ArrayLike, roll: ArrayLike, heading: ArrayLike) -> n
 
 
 def rpy_to_enu_euler(rpy: ArrayLike) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Inverse of :func:`enu_euler_to_rpy`: ``(pitch, roll, heading_ccw)`` [rad]."""
+    """Inverse of :func:`enu_euler_to_rpy`: ``(pitch, roll, heading_ccw)`` [rad].
+
+    Parameters
+    ----------
+    rpy : array_like, shape (..., 3)
+        Our Z-Y-X angles ``[roll, pitch, yaw]`` of ``C_b_n`` (FRD to NED) [rad].
+
+    Returns
+    -------
+    pitch, roll, heading_ccw : ndarray, shape (...)
+        Seed-001 angles [rad]: pitch, roll, and the heading counter-clockwise from
+        north (``-yaw``).
+    """
     rpy = np.asarray(rpy, dtype=float)
     return rpy[..., 1], rpy[..., 0], -rpy[..., 2]
 
 
 # ------------------------------------------------------------------ step conventions
 def substeps(h: float, dt_truth: float) -> int:
-    """Number of inner sub-steps ``n = max(1, round(h / dt_truth))`` (an integer)."""
+    """Number of inner sub-steps ``n = max(1, round(h / dt_truth))`` (an integer).
+
+    Parameters
+    ----------
+    h : float
+        Communication step [s].
+    dt_truth : float
+        Wanted inner (truth) step [s]; ``<= 0`` gives one sub-step.
+
+    Returns
+    -------
+    int
+        ``n >= 1``; the sub-step is ``h / n``.
+    """
     if not dt_truth > 0.0:
         return 1
     return max(1, int(round(h / dt_truth)))
@@ -841,7 +1070,18 @@ class StepPath:
         self._xd: np.ndarray | None = None
 
     def reset(self, t: float, x: ArrayLike, xd: ArrayLike | None = None) -> None:
-        """Store the value (and derivative) at time ``t`` as the start of the next step."""
+        """Store the value (and derivative) at time ``t`` as the start of the next step.
+
+        Parameters
+        ----------
+        t : float
+            Time of the value, the start of the next step [s].
+        x : array_like, shape (3,)
+            Value of the input at ``t`` (its unit and frame).
+        xd : array_like, shape (3,), optional
+            Its time derivative at ``t`` (unit per second); None when no derivative is
+            connected (the next step then uses the quadratic path).
+        """
         self._t = float(t)
         self._x = np.array(x, dtype=float)
         self._xd = None if xd is None else np.array(xd, dtype=float)

@@ -61,13 +61,35 @@ M_RATIO = OMEGA_IE**2 * A**2 * B / GM
 
 
 def R_M(lat: ArrayLike) -> np.ndarray:
-    """Meridian radius of curvature [m] at latitude ``lat`` [rad] (any shape)."""
+    """Meridian radius of curvature [m] at latitude ``lat`` [rad] (any shape).
+
+    Parameters
+    ----------
+    lat : array_like
+        Geodetic latitude [rad], any shape.
+
+    Returns
+    -------
+    ndarray
+        ``R_M(lat)`` [m], same shape as ``lat``.
+    """
     s = np.sin(np.asarray(lat, dtype=float))
     return A * (1.0 - E2) / (1.0 - E2 * s * s) ** 1.5
 
 
 def R_N(lat: ArrayLike) -> np.ndarray:
-    """Transverse (prime-vertical) radius of curvature [m] at latitude ``lat`` [rad]."""
+    """Transverse (prime-vertical) radius of curvature [m] at latitude ``lat`` [rad].
+
+    Parameters
+    ----------
+    lat : array_like
+        Geodetic latitude [rad], any shape.
+
+    Returns
+    -------
+    ndarray
+        ``R_N(lat)`` [m], same shape as ``lat``.
+    """
     s = np.sin(np.asarray(lat, dtype=float))
     return A / np.sqrt(1.0 - E2 * s * s)
 
@@ -94,7 +116,21 @@ def gravity(lat: ArrayLike, h: ArrayLike = 0.0) -> np.ndarray:
 
 
 def g_n(lat: ArrayLike, h: ArrayLike = 0.0) -> np.ndarray:
-    """Gravity vector in NED ``[0, 0, g]`` [m/s^2], shape ``(..., 3)``."""
+    """Gravity vector in NED ``[0, 0, g]`` [m/s^2], shape ``(..., 3)``.
+
+    Parameters
+    ----------
+    lat : array_like
+        Geodetic latitude [rad].
+    h : array_like
+        Height above the ellipsoid [m]; broadcasts with ``lat``.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Normal gravity (:func:`gravity`) along NED down; ``...`` is the broadcast
+        shape of the inputs.
+    """
     g = gravity(lat, h)
     out = np.zeros(np.shape(g) + (3,))
     out[..., 2] = g
@@ -102,7 +138,18 @@ def g_n(lat: ArrayLike, h: ArrayLike = 0.0) -> np.ndarray:
 
 
 def omega_ie_n(lat: ArrayLike) -> np.ndarray:
-    """Earth rate in NED ``[Omega cos L, 0, -Omega sin L]`` [rad/s], shape ``(..., 3)``."""
+    """Earth rate in NED ``[Omega cos L, 0, -Omega sin L]`` [rad/s], shape ``(..., 3)``.
+
+    Parameters
+    ----------
+    lat : array_like, shape (...)
+        Geodetic latitude [rad].
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        ``omega_ie_n`` [rad/s].
+    """
     lat = np.asarray(lat, dtype=float)
     return np.stack([OMEGA_IE * np.cos(lat), np.zeros_like(lat), -OMEGA_IE * np.sin(lat)], axis=-1)
 
@@ -134,7 +181,22 @@ def omega_en_n(v_n: ArrayLike, lat: ArrayLike, h: ArrayLike = 0.0) -> np.ndarray
 def position_rate(
     v_n: ArrayLike, lat: ArrayLike, h: ArrayLike = 0.0
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Rates of latitude [rad/s], longitude [rad/s] and height [m/s] from the NED velocity."""
+    """Rates of latitude [rad/s], longitude [rad/s] and height [m/s] from the NED velocity.
+
+    Parameters
+    ----------
+    v_n : array_like, shape (..., 3)
+        Velocity w.r.t. the earth in NED [m/s].
+    lat : array_like, shape (...)
+        Geodetic latitude [rad] (not at a pole).
+    h : array_like, shape (...)
+        Height above the ellipsoid [m].
+
+    Returns
+    -------
+    lat_dot, lon_dot, h_dot : ndarray, shape (...)
+        ``v_N / (R_M + h)`` [rad/s], ``v_E / ((R_N + h) cos L)`` [rad/s], ``-v_D`` [m/s].
+    """
     v_n = np.asarray(v_n, dtype=float)
     lat = np.asarray(lat, dtype=float)
     lat_dot = v_n[..., 0] / (R_M(lat) + h)
@@ -143,7 +205,23 @@ def position_rate(
 
 
 class ImuTruth(NamedTuple):
-    """Exact inertial quantities of a trajectory at a set of instants (shapes (m, 3) / (m,))."""
+    """Exact inertial quantities of a trajectory at a set of instants (shapes (m, 3) / (m,)).
+
+    Attributes
+    ----------
+    C_b_n : ndarray, shape (m, 3, 3)
+        Attitude, body (FRD) to NED.
+    lat, lon : ndarray, shape (m,)
+        Geodetic latitude and longitude [rad].
+    h : ndarray, shape (m,)
+        Height above the ellipsoid [m].
+    omega_ib_b : ndarray, shape (m, 3)
+        Body rate w.r.t. inertial space, body axes [rad/s].
+    omega_dot_b : ndarray, shape (m, 3)
+        Time derivative of ``omega_ib_b`` (body axes) [rad/s2].
+    f_b : ndarray, shape (m, 3)
+        Specific force, body axes [m/s2].
+    """
 
     C_b_n: np.ndarray
     lat: np.ndarray

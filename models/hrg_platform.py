@@ -229,7 +229,19 @@ class HrgPlatform(Block):
         return a, a_dot
 
     def status(self, t: float) -> float:
-        """Position status at time ``t``: 1, 0 (moving or settling) or 2."""
+        """Position status at time ``t``: 1, 0 (moving or settling) or 2.
+
+        Parameters
+        ----------
+        t : float
+            Simulation time [s] (compared with ``index_time``, the move and
+            ``settle_time``, with a 1e-9 s round-off tolerance).
+
+        Returns
+        -------
+        float
+            1.0 before the indexing move, 0.0 while moving or settling, 2.0 afterwards.
+        """
         tol = 1e-9  # s: step ends computed as t0 + n h may miss an exact instant by round-off
         if self.index_time < 0.0 or t <= self.index_time + tol:
             return 1.0

@@ -82,7 +82,18 @@ _DEG = math.pi / 180.0
 
 
 def r0_matrix(r0: np.ndarray) -> np.ndarray:
-    """Seed 001's ``R_0 = [[0, z0, 0], [0, 0, x0], [y0, 0, 0]]`` for ``r0 = [x0, y0, z0]``."""
+    """Seed 001's ``R_0 = [[0, z0, 0], [0, 0, x0], [y0, 0, 0]]`` for ``r0 = [x0, y0, z0]``.
+
+    Parameters
+    ----------
+    r0 : ndarray, shape (3,)
+        Undeformed lever arm master -> slave, master body axes [m].
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        ``R_0`` [m/rad]: the lever-arm change ``R_0 theta`` for a flexure angle ``theta``.
+    """
     x0, y0, z0 = (float(v) for v in r0)
     return np.array([[0.0, z0, 0.0], [0.0, 0.0, x0], [y0, 0.0, 0.0]])
 

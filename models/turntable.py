@@ -162,7 +162,20 @@ class Turntable(Block):
         return np.array(rows, dtype=float).reshape(-1, 7)
 
     def profile(self, tt: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Table angle [rad], rate [rad/s] and acceleration [rad/s2] at instants ``tt`` (m,)."""
+        """Table angle [rad], rate [rad/s] and acceleration [rad/s2] at instants ``tt`` (m,).
+
+        Parameters
+        ----------
+        tt : ndarray, shape (m,)
+            Simulation times [s], any order.
+
+        Returns
+        -------
+        angle, rate, accel : ndarray, shape (m,)
+            Unwrapped encoder angle ``gamma`` about the base z axis (down) [rad], its
+            rate [rad/s] and acceleration [rad/s2], from the parameters ``mode``,
+            ``angle0``, ``rate``, ... (see the module docstring).
+        """
         tt = np.asarray(tt, dtype=float)
         angle = np.full(tt.shape, float(self.angle0))
         zero = np.zeros(tt.shape)

@@ -125,4 +125,3 @@ def test_every_model_has_a_readme_with_its_variables(name: str) -> None:
     text = doc.read_text()
     for var in BLOCKS[name].variables:
         assert var.name in text, f"{name}.md does not mention {var.name}"
-

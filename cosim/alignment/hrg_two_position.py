@@ -275,7 +275,24 @@ def predict_dv(x: np.ndarray, E0: complex, E1: complex, lat: float, g: float) ->
 
 
 def dv_jacobian(x: np.ndarray, E0: complex, E1: complex, lat: float, g: float) -> np.ndarray:
-    """Jacobian of :func:`predict_dv` with respect to the state, shape (2, 4)."""
+    """Jacobian of :func:`predict_dv` with respect to the state, shape (2, 4).
+
+    Parameters
+    ----------
+    x : ndarray, shape (4,)
+        ``[theta_N0, theta_E0, D_N, psi]`` [rad, rad, rad/s, rad] (one state, not a batch).
+    E0, E1 : complex
+        From :func:`dv_coefficients` [s, s^2].
+    lat : float
+        Latitude [rad].
+    g : float
+        Gravity [m/s^2].
+
+    Returns
+    -------
+    ndarray, shape (2, 4)
+        ``d dv / d x``: rows platform x, y [m/s per unit of each state].
+    """
     oc = OMEGA_IE * math.cos(lat)
     r = cmath.exp(-1j * float(x[_PSI]))
     v = (complex(x[1], x[0]) * E0 + 1j * (float(x[2]) - oc) * E1) * r
@@ -917,7 +934,15 @@ class TwoPositionAligner:
 
     # ------------------------------------------------------------------ feeding
     def start(self, t: float, status: float) -> None:
-        """Record the platform status at the start time ``t`` [s]."""
+        """Record the platform status at the start time ``t`` [s].
+
+        Parameters
+        ----------
+        t : float
+            Start time of the run [s].
+        status : float
+            Platform status at ``t``: 1 position 1, 0 indexing, 2 position 2.
+        """
         self._prev_status = float(status)
         self._last_t = float(t)
 
@@ -1039,6 +1064,17 @@ class TwoPositionAligner:
         The model frame of a position is geographic turned by ``delta``; it is turned
         back with the two-position ``delta`` when known (position 2), else with 0 and
         the unknown ``delta`` (``sigma_drift / Oc``) added to the sigma.
+
+        Parameters
+        ----------
+        t : float
+            Time at which to evaluate the tilts [s] (the active position's filter state is
+            propagated from its position start to ``t``).
+
+        Returns
+        -------
+        theta_E, theta_N, sigma_E, sigma_N : float
+            Geographic level misalignments about east and north and their 1-sigma [rad].
         """
         if self.active == 0:
             s = math.sqrt(self.P0[0, 0])

@@ -74,7 +74,18 @@ class CampaignResult:
         return np.stack(parts, axis=-1)
 
     def index(self, t: float) -> int:
-        """Index of the recorded time closest to ``t`` [s]."""
+        """Index of the recorded time closest to ``t`` [s].
+
+        Parameters
+        ----------
+        t : float
+            Simulation time [s].
+
+        Returns
+        -------
+        int
+            Index into :attr:`time` (and the last axis of every column).
+        """
         return int(np.argmin(np.abs(self.time - t)))
 
 

@@ -243,7 +243,19 @@ def _norm2(v: ArrayLike) -> float:
 
 
 def dcm_rotvec(c: ArrayLike) -> FloatArray:
-    """Rotation vector (logarithm) of a DCM, shape (3,) [rad], for angles below pi."""
+    """Rotation vector (logarithm) of a DCM, shape (3,) [rad], for angles below pi.
+
+    Parameters
+    ----------
+    c : array_like, shape (3, 3)
+        Orthonormal DCM (``exp([phi x])``); the result is ``phi``, in the frame in which
+        ``c`` rotates (e.g. NED for a nav-frame error ``C^ C^T``).
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        Rotation vector [rad].
+    """
     c = np.asarray(c, dtype=float)
     w = 0.5 * np.array([c[2, 1] - c[1, 2], c[0, 2] - c[2, 0], c[1, 0] - c[0, 1]])
     s = math.sqrt(_norm2(w))
@@ -256,6 +268,16 @@ def step_mean_dcm(phi: ArrayLike) -> FloatArray:
     """``J(phi)``: the mean of ``exp([phi s x])`` over ``s in [0, 1]``, shape (3, 3).
 
     ``J = I + (1 - cos a) / a^2 [phi x] + (a - sin a) / a^3 [phi x]^2``, ``a = |phi|``.
+
+    Parameters
+    ----------
+    phi : array_like, shape (3,)
+        Rotation vector of the step, sensor axes [rad].
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        ``J(phi)``.
     """
     a2 = _norm2(phi)
     if a2 < 1e-6:
@@ -275,6 +297,16 @@ def rotation_compensation(phi: ArrayLike) -> FloatArray:
     Maps the raw velocity increment of a step turning by ``phi`` at a constant rate to
     the velocity change resolved in the sensor axes at the start of the step, when the
     specific force is constant in inertial space.
+
+    Parameters
+    ----------
+    phi : array_like, shape (3,)
+        Rotation vector of the step, sensor axes [rad].
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        ``J(-phi)^-1``.
     """
     a2 = _norm2(phi)
     if a2 < 1e-4:
@@ -316,7 +348,18 @@ def table_axis_coning(dtheta: ArrayLike, axis: ArrayLike) -> FloatArray:
 
 
 def dcm_euler(c: FloatArray) -> FloatArray:
-    """``[roll, pitch, yaw]`` [rad] of ``C_b_n`` (inverse of :func:`models.conventions.euler_to_dcm_3`), shape (3,)."""
+    """Z-Y-X Euler angles of a DCM (inverse of :func:`models.conventions.euler_to_dcm_3`).
+
+    Parameters
+    ----------
+    c : ndarray, shape (3, 3)
+        Body (here: sensor) to NED DCM ``C_b_n``; Z-Y-X Euler angles, pitch away from +-90 deg.
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        ``[roll, pitch, yaw]`` [rad], roll and yaw in (-pi, pi].
+    """
     return np.array(
         [
             math.atan2(c[2, 1], c[2, 2]),
@@ -353,6 +396,19 @@ def euler_error_jacobian(rpy: ArrayLike) -> FloatArray:
 def quad_form_inv3(e: ArrayLike, P: ArrayLike) -> float:
     """``e^T P^-1 e`` for a 3-vector and a 3x3 SPD matrix (explicit Cholesky, no LAPACK call).
 
+    Parameters
+    ----------
+    e : array_like, shape (3,)
+        Error vector, e.g. the attitude error ``phi_err`` [rad], NED.
+    P : array_like, shape (3, 3)
+        Its covariance, symmetric positive definite, e.g. ``P_att`` [rad^2]; only the
+        upper triangle is read.
+
+    Returns
+    -------
+    float
+        The squared Mahalanobis distance (dimensionless).
+
     Raises
     ------
     AlignmentError
@@ -375,12 +431,34 @@ def quad_form_inv3(e: ArrayLike, P: ArrayLike) -> float:
 
 
 def wrap(a: float) -> float:
-    """Angle wrapped to (-pi, pi] [rad]."""
+    """Angle wrapped to (-pi, pi] [rad].
+
+    Parameters
+    ----------
+    a : float
+        Angle [rad].
+
+    Returns
+    -------
+    float
+        ``a`` plus a multiple of ``2 pi``, in (-pi, pi] [rad].
+    """
     return math.pi - (math.pi - a) % (2.0 * math.pi)
 
 
 def table_dcm(gamma: float) -> FloatArray:
-    """``Rz(gamma)``: table to base for encoder angle ``gamma`` [rad], shape (3, 3)."""
+    """``Rz(gamma)``: table to base for encoder angle ``gamma`` [rad], shape (3, 3).
+
+    Parameters
+    ----------
+    gamma : float
+        Table encoder angle, a right-handed turn about the base z axis (down) [rad].
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        ``C_t_b``.
+    """
     c, s = math.cos(gamma), math.sin(gamma)
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
@@ -468,7 +546,20 @@ def coarse_error_theory(
 
 
 def heading_limit(gyro_drift: float, lat: float) -> float:
-    """Single-position heading limit ``eps_E / (W cos L)`` [rad] for an east drift [rad/s]."""
+    """Single-position heading limit ``eps_E / (W cos L)`` [rad] for an east drift [rad/s].
+
+    Parameters
+    ----------
+    gyro_drift : float
+        East gyro drift ``eps_E`` [rad/s].
+    lat : float
+        Latitude [rad] (not at a pole).
+
+    Returns
+    -------
+    float
+        Heading error of a stationary single-position alignment [rad].
+    """
     return float(gyro_drift) / (OMEGA_IE * math.cos(lat))
 
 
@@ -567,11 +658,33 @@ class CovarianceHistory:
     P_att: FloatArray
 
     def index(self, t: float) -> int:
-        """Index of the recorded time closest to ``t`` [s]."""
+        """Index of the recorded time closest to ``t`` [s].
+
+        Parameters
+        ----------
+        t : float
+            Time after the start of fine alignment [s].
+
+        Returns
+        -------
+        int
+            Index into :attr:`time`.
+        """
         return int(np.argmin(np.abs(self.time - t)))
 
     def at(self, t: float) -> FloatArray:
-        """1-sigma of every state at the recorded time closest to ``t``, shape (10,)."""
+        """1-sigma of every state at the recorded time closest to ``t``, shape (10,).
+
+        Parameters
+        ----------
+        t : float
+            Time after the start of fine alignment [s].
+
+        Returns
+        -------
+        ndarray, shape (10,)
+            A row of :attr:`sigma` (SI, states :data:`STATES`).
+        """
         return self.sigma[self.index(t)]
 
     def heading_sigma(self) -> FloatArray:
@@ -745,7 +858,17 @@ class Strapdown:
         return self._nav_rot
 
     def correct(self, dv_n: FloatArray, psi: FloatArray) -> None:
-        """Closed-loop feedback of a velocity error [m/s] (N, E) and a psi angle [rad]."""
+        """Closed-loop feedback of a velocity error [m/s] (N, E) and a psi angle [rad].
+
+        Parameters
+        ----------
+        dv_n : ndarray, shape (2,)
+            Estimated velocity error ``[dv_N, dv_E]`` (computed minus true), NED [m/s];
+            subtracted from :attr:`v_n`.
+        psi : ndarray, shape (3,)
+            Estimated misalignment of the computed navigation frame, NED [rad]; the
+            attitude becomes ``exp([psi x]) C_s_n``, undoing ``C^ = (I - [psi x]) C``.
+        """
         self.v_n = np.array([self.v_n[0] - dv_n[0], self.v_n[1] - dv_n[1], 0.0])
         self.C_s_n = rotvec_to_dcm_3(psi) @ self.C_s_n
 

@@ -446,7 +446,18 @@ def euler_rate_matrix(rpy: ArrayLike) -> FloatArray:
 
 
 def wrap_pi(a: ArrayLike) -> FloatArray:
-    """Wrap angles [rad] to (-pi, pi]."""
+    """Wrap angles to (-pi, pi].
+
+    Parameters
+    ----------
+    a : array_like, any shape
+        Angles [rad].
+
+    Returns
+    -------
+    ndarray, same shape
+        The same angles in (-pi, pi] [rad].
+    """
     a = np.asarray(a, dtype=float)
     return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
 
@@ -651,7 +662,20 @@ def propagate(x: ArrayLike, sums: PeriodSums, layout: StateLayout) -> FloatArray
 
 
 def measurement(x: ArrayLike, layout: StateLayout) -> FloatArray:
-    """Velocity-matching measurement ``h(x) = dV``, shape (..., 3)."""
+    """Velocity-matching measurement ``h(x) = dV``.
+
+    Parameters
+    ----------
+    x : array_like, shape (..., n)
+        Error states (one or many: sigma points along the first axes).
+    layout : StateLayout
+        19- or 13-state layout (where ``dV`` sits in ``x``).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Slave-minus-master velocity error, NED [m/s].
+    """
     return np.asarray(x, dtype=float)[..., layout.dv]
 
 
@@ -795,7 +819,18 @@ class CovarianceHistory:
     P: FloatArray
 
     def at(self, t: float) -> int:
-        """Index of the update time closest to ``t`` [s]."""
+        """Index of the update time closest to ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+
+        Returns
+        -------
+        int
+            Row of :attr:`time` (and of the sigma arrays).
+        """
         return int(np.argmin(np.abs(self.time - t)))
 
 
@@ -1127,7 +1162,18 @@ class SlaveStrapdown:
 
 
 def euler_rate_matrix_inv(rpy: ArrayLike) -> FloatArray:
-    """Inverse of :func:`euler_rate_matrix` (closed form), shape (3, 3); pitch != +-90 deg."""
+    """Inverse of :func:`euler_rate_matrix` (closed form).
+
+    Parameters
+    ----------
+    rpy : array_like, shape (3,)
+        Roll, pitch, yaw [rad] (Z-Y-X); pitch must not be +-90 deg.
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        Maps small rotation-vector errors to Euler-angle errors.
+    """
     _, p, y = (float(v) for v in np.asarray(rpy, dtype=float))
     cp, tp = math.cos(p), math.tan(p)
     cy, sy = math.cos(y), math.sin(y)

@@ -58,6 +58,16 @@ def reproduce(name: str, out_dir: Path, runs: int, seed: int) -> str:
 def update_readme(readme: Path, name: str, block: str) -> None:
     """Replace the text between ``<!-- name:begin -->`` and ``<!-- name:end -->``.
 
+    Parameters
+    ----------
+    readme : Path
+        The README file, rewritten in place.
+    name : str
+        Marker name, the paper (``"seed000"``, ``"seed001"`` or ``"seed003"``).
+    block : str
+        Markdown to put between the markers (trailing whitespace stripped, one newline
+        added).
+
     Raises
     ------
     ValueError

@@ -199,7 +199,20 @@ def sensor_draws(seed: int, runs: int) -> np.ndarray:
 
 
 def run_seeds(seed: int, index: int) -> dict[str, int]:
-    """Seeds of run ``index`` (see the module docstring): ``{"flex", "imu", "master"}``."""
+    """Seeds of run ``index`` (see the module docstring).
+
+    Parameters
+    ----------
+    seed : int
+        Campaign seed (>= 0).
+    index : int
+        Run number, 0-based.
+
+    Returns
+    -------
+    dict
+        ``{"flex", "imu", "master"}`` -> seed in [0, 2**31 - 1].
+    """
     return campaign_run_seeds(int(seed), int(index), SEEDED)
 
 
@@ -241,21 +254,45 @@ class RunHistory:
     wall: float = 0.0
 
     def window(self, t_from: float = T_FROM) -> np.ndarray:
-        """Boolean mask of the samples ``t >= t_from``."""
+        """Boolean mask of the samples ``t >= t_from``, shape (m,).
+
+        Parameters
+        ----------
+        t_from : float
+            Start of the window [s] (default: 30 s, after the heading has converged).
+        """
         return self.time >= t_from - 1e-9
 
     def rms(self, t_from: float = T_FROM) -> np.ndarray:
-        """RMS over time of the error from ``t_from`` on, shape (3,) [arcmin]."""
+        """RMS over time of the error from ``t_from`` on, shape (3,) [arcmin].
+
+        Parameters
+        ----------
+        t_from : float
+            Start of the window [s] (default: 30 s, after the heading has converged).
+        """
         m = self.window(t_from)
         return np.sqrt(np.mean(self.err[m] ** 2, axis=0))
 
     def sigma_rms(self, t_from: float = T_FROM) -> np.ndarray:
-        """RMS over time of the filter's sigma from ``t_from`` on, shape (3,) [arcmin]."""
+        """RMS over time of the filter's sigma from ``t_from`` on, shape (3,) [arcmin].
+
+        Parameters
+        ----------
+        t_from : float
+            Start of the window [s] (default: 30 s, after the heading has converged).
+        """
         m = self.window(t_from)
         return np.sqrt(np.mean(self.sigma[m] ** 2, axis=0))
 
     def max_abs(self, t_from: float = T_FROM) -> np.ndarray:
-        """Largest ``|err|`` from ``t_from`` on, shape (3,) [arcmin]."""
+        """Largest ``|err|`` from ``t_from`` on, shape (3,) [arcmin].
+
+        Parameters
+        ----------
+        t_from : float
+            Start of the window [s] (default: 30 s, after the heading has converged).
+        """
         return np.max(np.abs(self.err[self.window(t_from)]), axis=0)
 
     @property
@@ -338,6 +375,15 @@ class Runner:
 
     def run(self, case: Case, index: int, seed: int) -> RunHistory:
         """Run one case with the seeds of run ``index`` of campaign ``seed``.
+
+        Parameters
+        ----------
+        case : Case
+            The configuration (its overrides; its stratified design, if any).
+        index : int
+            Run number, 0-based (below ``case.stratified`` for a stratified case).
+        seed : int
+            Campaign seed (:func:`run_seeds`, :func:`sensor_draws`).
 
         Returns
         -------
@@ -478,7 +524,21 @@ class CampaignStats:
 def stats(
     runs: Iterable[RunHistory], t_from: float = T_FROM, bias_sigma: float = BIAS_SIGMA
 ) -> CampaignStats:
-    """Pool runs into :class:`CampaignStats` (``bias_sigma``: the filter's bias prior [m/s2])."""
+    """Pool runs into :class:`CampaignStats`.
+
+    Parameters
+    ----------
+    runs : iterable of RunHistory
+        The runs of one case (at least one).
+    t_from : float
+        Start of the accuracy window [s].
+    bias_sigma : float
+        The filter's accelerometer-bias prior sigma [m/s2] (unit of ``bias_draw``).
+
+    Returns
+    -------
+    CampaignStats
+    """
     runs = list(runs)
     if not runs:
         raise ReproductionError("no runs to pool")
@@ -498,7 +558,19 @@ def stats(
 
 
 def level_consistent(s: CampaignStats, tol: float = LEVEL_TOL) -> bool:
-    """Roll and pitch RMS error within ``tol`` of the filter's RMS sigma."""
+    """Roll and pitch RMS error within ``tol`` of the filter's RMS sigma.
+
+    Parameters
+    ----------
+    s : CampaignStats
+        Pooled statistics of a campaign.
+    tol : float
+        Allowed relative difference (acceptance 1: 0.25).
+
+    Returns
+    -------
+    bool
+    """
     return bool(np.all(np.abs(s.level_ratio - 1.0) <= tol))
 
 
@@ -513,6 +585,11 @@ def _ok(flag: bool) -> str:
 
 def covariance_lines(dt: float = 0.1) -> tuple[list[str], dict[str, Any]]:
     """Markdown rows of the covariance analysis against the issue's figures.
+
+    Parameters
+    ----------
+    dt : float
+        Propagation step of the analysis [s].
 
     Returns
     -------

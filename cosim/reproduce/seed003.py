@@ -99,7 +99,18 @@ class ScenarioFacts:
 
 
 def scenario_facts(path: Path) -> ScenarioFacts:
-    """Read the filter tuning, position, IMU and table profile of a seed 003 scenario."""
+    """Read the filter tuning, position, IMU and table profile of a seed 003 scenario.
+
+    Parameters
+    ----------
+    path : Path
+        Scenario file with blocks ``base``, ``imu``, ``align`` and optionally ``table``
+        (``scenarios/sins_north_finding*.toml``); it is built, not run.
+
+    Returns
+    -------
+    ScenarioFacts
+    """
     scenario = load_scenario(path)
     system, _ = scenario.build()
     try:
@@ -159,6 +170,16 @@ def coarse_theory_sigma(facts: ScenarioFacts) -> tuple[float, float]:
     ``heading = -eps_E / (W cos L) + tan L nabla_E / g`` and ``level = nabla / g`` with
     the per-axis turn-on sigmas and the white noise averaged over the window ``T``
     (``N / sqrt(T)``), horizontal components of isotropic sensor errors.
+
+    Parameters
+    ----------
+    facts : ScenarioFacts
+        The scenario's IMU parameters (SI), latitude and ``coarse_time``.
+
+    Returns
+    -------
+    heading, level : float
+        1-sigma of the heading error and of one level angle [rad].
     """
     imu = facts.imu
     T = facts.coarse_time
@@ -171,7 +192,27 @@ def coarse_theory_sigma(facts: ScenarioFacts) -> tuple[float, float]:
 
 @dataclass
 class Seed003Run:
-    """Every campaign and analysis of the reproduction."""
+    """Every campaign and analysis of the reproduction.
+
+    Attributes
+    ----------
+    static, rotating : CampaignResult
+        Fine-alignment campaigns of the one-position and rotating-table scenarios.
+    coarse : CampaignResult
+        Coarse-alignment campaign (``init_mode = 0``, stopped at ``coarse_time``).
+    coarse_perfect : ndarray, shape (3,)
+        Roll, pitch, heading error after coarse alignment with a perfect IMU [arcmin].
+    facts_static, facts_rotating : ScenarioFacts
+        What the analysis read from the two scenario files.
+    cov : dict
+        Covariance histories from :func:`analyses`.
+    runs : int
+        Runs per campaign.
+    seed : int
+        Campaign seed.
+    elapsed : float
+        Wall time of :func:`run_all` [s].
+    """
 
     static: CampaignResult
     rotating: CampaignResult
@@ -251,6 +292,16 @@ def analyses(fs: ScenarioFacts, fr: ScenarioFacts) -> dict[str, CovarianceHistor
     tuning and base attitude, with Coriolis as in the block), and
     ``("static" | "continuous", r)`` for the issue's model (level base, continuous
     rotation at the table's rate, no Coriolis).
+
+    Parameters
+    ----------
+    fs, fr : ScenarioFacts
+        Facts of the static and of the rotating scenario.
+
+    Returns
+    -------
+    dict
+        Key (see above) -> :class:`~cosim.alignment.sins_static.CovarianceHistory`.
     """
     out: dict[Any, CovarianceHistory] = {}
     kw = {"dt": fs.kf_period, "kf_period": fs.kf_period, "coriolis": True}
@@ -276,13 +327,38 @@ def rpy_sigma(cov: CovarianceHistory, base_rpy: np.ndarray) -> np.ndarray:
 
     The NED angle covariance mapped to Euler-angle errors at the base attitude
     (:func:`~cosim.alignment.sins_static.euler_error_jacobian`).
+
+    Parameters
+    ----------
+    cov : CovarianceHistory
+        Its ``P_att`` (NED psi-angle covariance, shape (m, 3, 3) [rad^2]) is used.
+    base_rpy : ndarray, shape (3,)
+        Base (true) attitude ``[roll, pitch, yaw]`` of ``C_b_n``, NED [rad].
+
+    Returns
+    -------
+    ndarray, shape (m, 3)
+        Roll, pitch, heading 1-sigma [arcmin].
     """
     m = euler_error_jacobian(base_rpy)
     return np.sqrt(np.einsum("ij,tjk,ik->ti", m, cov.P_att, m)) / ARCMIN
 
 
 def rms(x: np.ndarray, axis: int = 0) -> np.ndarray:
-    """Root mean square along ``axis``."""
+    """Root mean square along ``axis``.
+
+    Parameters
+    ----------
+    x : ndarray
+        Errors, any shape and unit (e.g. campaign errors, shape (runs, m) [arcmin]).
+    axis : int
+        Axis to average over (default 0, the runs).
+
+    Returns
+    -------
+    ndarray
+        ``x``'s shape without ``axis``, in ``x``'s unit.
+    """
     return np.sqrt(np.mean(np.square(x), axis=axis))
 
 
@@ -290,6 +366,18 @@ def rms_band(n: int, confidence: float = 0.95) -> tuple[float, float]:
     """Two-sided band of ``RMS / sigma`` over ``n`` independent N(0, sigma^2) errors.
 
     ``n RMS^2 / sigma^2`` is chi-square with ``n`` degrees of freedom.
+
+    Parameters
+    ----------
+    n : int
+        Number of errors averaged (e.g. Monte Carlo runs).
+    confidence : float
+        Two-sided probability, in (0, 1).
+
+    Returns
+    -------
+    low, high : float
+        Band of ``RMS / sigma`` (dimensionless).
     """
     from scipy.stats import chi2
 
@@ -298,7 +386,19 @@ def rms_band(n: int, confidence: float = 0.95) -> tuple[float, float]:
 
 
 def summary(res: Seed003Run) -> dict[str, Any]:
-    """Every number of the Markdown table (arcmin unless the key says otherwise)."""
+    """Every number of the Markdown table (arcmin unless the key says otherwise).
+
+    Parameters
+    ----------
+    res : Seed003Run
+        The campaigns and analyses of :func:`run_all`.
+
+    Returns
+    -------
+    dict
+        Name -> value: floats, bands (tuples), and per-time arrays (keys ending ``_t``)
+        over the recorded times (``<case>_time`` [s]).
+    """
     s: dict[str, Any] = {}
     n = res.runs
     fs = res.facts_static
@@ -373,7 +473,20 @@ def _verdicts(s: dict[str, Any]) -> dict[str, bool]:
 
 # ------------------------------------------------------------------ plots
 def plots(res: Seed003Run, out_dir: Path) -> list[str]:
-    """Write the three figures; return their file names."""
+    """Write the three figures; return their file names.
+
+    Parameters
+    ----------
+    res : Seed003Run
+        The campaigns and analyses of :func:`run_all`.
+    out_dir : Path
+        Existing folder for the PNG files.
+
+    Returns
+    -------
+    list of str
+        File names (without folder) of the figures written.
+    """
     import matplotlib
 
     matplotlib.use("Agg")
@@ -456,7 +569,23 @@ def _yes(ok: bool) -> str:
 
 
 def markdown(res: Seed003Run, files: list[str], image_dir: str = "") -> str:
-    """The README block: paper | ours | tolerance tables (numbers from :func:`summary`)."""
+    """The README block: paper | ours | tolerance tables (numbers from :func:`summary`).
+
+    Parameters
+    ----------
+    res : Seed003Run
+        The campaigns and analyses of :func:`run_all`.
+    files : list of str
+        Figure file names from :func:`plots`, linked at the end of the block.
+    image_dir : str
+        Prefix of the image links (a folder relative to the README, ending with ``/``,
+        or empty).
+
+    Returns
+    -------
+    str
+        Markdown.
+    """
     s = summary(res)
     v = _verdicts(s)
     n = res.runs
