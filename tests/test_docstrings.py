@@ -66,13 +66,6 @@ import models
 
 PACKAGES = (cosim, models)
 
-#: Modules other people are editing, with undocumented arguments at the time this test
-#: was written: xfail(strict=False) until they are documented (then remove them here).
-BEING_EDITED: frozenset[str] = frozenset(
-    {
-        "cosim.reproduce.seed000",
-    }
-)
 
 _HEADER = re.compile(r"^\s*-{3,}\s*$")
 _ENTRY = re.compile(r"^(?P<names>\*{0,2}\w+(?:\s*,\s*\*{0,2}\w+)*)\s*:(?:\s|$)")
@@ -225,15 +218,7 @@ def public_modules() -> list[str]:
     return sorted(names)
 
 
-def _params() -> list[object]:
-    mark = pytest.mark.xfail(strict=False, reason="being edited")
-    return [
-        pytest.param(name, marks=mark) if name in BEING_EDITED else name
-        for name in public_modules()
-    ]
-
-
-@pytest.mark.parametrize("module_name", _params())
+@pytest.mark.parametrize("module_name", public_modules())
 def test_public_arguments_are_documented(module_name: str) -> None:
     found = offenders(module_name)
     assert not found, "undocumented arguments:\n" + "\n".join(found)

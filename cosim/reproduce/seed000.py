@@ -10,7 +10,10 @@ with the HRG triad and the pulse accelerometers; filter:
    percentile;
 3. the large-misalignment set: initial azimuth 10, 45, 100, 170, -120 deg,
    ``min(runs, 10)`` runs each, every filter;
-4. ``min(runs, 20)`` runs with the truth drawn from the paper's P0 (azimuth uniform).
+4. ``min(runs, 20)`` runs with the truth drawn from the paper's P0 (azimuth uniform);
+5. the campaign of 2. again (UPF and KF, the same runs) at accelerometer white-noise
+   densities of 1-8 ug/sqrt(Hz), truth and filter model alike (:func:`noise_sensitivity`):
+   the paper gives no accelerometer noise and the convergence time depends on it.
 
 Campaign seeds (the same mapping as :mod:`cosim.campaign`)::
 
@@ -49,6 +52,7 @@ from cosim.alignment.hrg_two_position import ARCMIN, DEG_H, METHODS
 from cosim.estimators import wrap_angle
 from cosim.master import CouplingWarning, Master
 from cosim.scenario import load_scenario
+from cosim.units import conversion_factor
 from models.earth import OMEGA_IE
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "hrg_two_position.toml"
@@ -62,6 +66,15 @@ TABLE1 = {"azimuth": 15.0, "theta_E": 1.0, "theta_N": 1.0, "D_N": 0.01, "D_E": 0
 LARGE_AZIMUTHS = (10.0, 45.0, 100.0, 170.0, -120.0)
 #: A run whose final azimuth error exceeds this failed: Table 1's tolerance [arcmin].
 FAIL_LIMIT = TABLE1["azimuth"]
+#: The paper's UPF azimuth convergence time (acceptance 1) [s].
+CONV_LIMIT = 70.0
+#: 1 ug/sqrt(Hz) in m/s/sqrt(s), the scenario's own conversion (so that 5 ug/sqrt(Hz) here
+#: is bit-identical to the file's "5 ug/sqrt(Hz)").
+UG_SQRT_HZ = conversion_factor("ug/sqrt(Hz)", "m/s/sqrt(s)")
+#: Accelerometer white-noise densities of the sensitivity study [ug/sqrt(Hz)].
+NOISE_DENSITIES = (1.0, 2.0, 3.0, 5.0, 8.0)
+#: Parameters a run sets itself (seeds, filter method): not allowed as overrides.
+_RUN_SET = {"seed", "method"}
 
 
 def run_seeds(seed: int, index: int) -> dict[str, int]:
@@ -88,7 +101,41 @@ def run_seeds(seed: int, index: int) -> dict[str, int]:
 
 @dataclass
 class RunSummary:
-    """Metrics of one run (angles in arcmin, rates in deg/h, times in s)."""
+    """Metrics of one run (angles in arcmin, rates in deg/h, times in s).
+
+    Attributes
+    ----------
+    method : int
+        0 EKF, 1 UPF, 2 KF.
+    index : int
+        Run number in its campaign (its seeds: :func:`run_seeds`).
+    azimuth0 : float
+        True initial platform azimuth [deg].
+    azimuth_err : float
+        Two-position azimuth error at the end (eq. 20), estimate minus truth [arcmin].
+    azimuth_sigma : float
+        The filter's own 1-sigma of it [arcmin].
+    t_conv : tuple of float
+        Convergence time of position 1 and 2 (apparent azimuth within ``CONV_BAND``
+        from then to the position's end) [s]; NaN if never.
+    psi_err_end : tuple of float
+        Apparent-azimuth error at the end of position 1 and 2 [arcmin].
+    t_conv_self : tuple of float
+        The filter's self-assessed convergence (3 sigma <= ``conv_band``) per position
+        [s]; NaN if never.
+    theta_E_err, theta_N_err : float
+        Level errors at the end [arcmin].
+    t_level : float
+        Time after which both level errors stay within ``LEVEL_BAND`` in position 1 [s].
+    D_N_err, D_E_err : float
+        Drift errors of the y ("north") and x ("east") gyros at the end [deg/h].
+    H_E : float
+        East-gyro regular drift estimate (eq. 21) [deg/h].
+    failed : bool
+        Final azimuth error above the Table 1 tolerance (15').
+    history : dict or None
+        Time histories for the plots (name -> ndarray, shape (m,)), if kept.
+    """
 
     method: int
     index: int
@@ -118,11 +165,25 @@ class Seed000Runner:
     stop : float, optional
         Stop time [s] (default: the file's).
     platform : dict, optional
-        Platform parameters (SI) overriding the file's, for every run.
+        Platform parameters (SI) overriding the file's, for every run (the same as
+        ``overrides={"platform": platform}``).
+    overrides : dict, optional
+        Block -> {parameter: value in the parameter's declared unit (SI)}, overriding the
+        file's for every run, e.g. ``{"accel": {"noise_density": 2e-5}}``. Seeds and the
+        filter method are set per run and cannot be overridden.
+
+    Raises
+    ------
+    ValueError
+        An override of an unknown block or parameter, or of a seed or the method.
     """
 
     def __init__(
-        self, scenario: Path = SCENARIO, stop: float | None = None, platform: dict | None = None
+        self,
+        scenario: Path = SCENARIO,
+        stop: float | None = None,
+        platform: dict | None = None,
+        overrides: dict[str, dict[str, float]] | None = None,
     ) -> None:
         sc = load_scenario(scenario)
         if stop is not None:
@@ -130,8 +191,26 @@ class Seed000Runner:
         self.system, meta = sc.build()
         self.master = Master(self.system, sc.settings, meta)
         self.base = {k: dict(v) for k, v in self.system.parameters.items()}
-        self.base["platform"].update(platform or {})
+        self._apply(self.base, {"platform": dict(platform or {})})
+        self._apply(self.base, overrides)
         self._fresh = True
+
+    def _apply(
+        self, params: dict[str, dict[str, Any]], overrides: dict[str, dict[str, float]] | None
+    ) -> None:
+        """Write ``overrides`` into ``params`` after checking every name against the blocks."""
+        for block, values in (overrides or {}).items():
+            host = self.system.blocks.get(block)
+            if host is None:
+                known = ", ".join(sorted(self.system.blocks))
+                raise ValueError(f"overrides: unknown block {block!r} (blocks: {known})")
+            for name, value in values.items():
+                var = host.variables.get(name)
+                if var is None or var.causality != "parameter":
+                    raise ValueError(f"overrides: block {block!r} has no parameter {name!r}")
+                if name in _RUN_SET:
+                    raise ValueError(f"overrides: {block}.{name} is set by each run")
+                params.setdefault(block, {})[name] = value
 
     def close(self) -> None:
         """Terminate the blocks."""
@@ -143,6 +222,7 @@ class Seed000Runner:
         seeds: dict[str, int],
         truth: dict[str, float] | None = None,
         history: bool = False,
+        overrides: dict[str, dict[str, float]] | None = None,
     ) -> RunSummary:
         """One run.
 
@@ -157,12 +237,16 @@ class Seed000Runner:
             ``drift[1..3]`` (SI) for this run.
         history : bool
             Keep the time histories needed for the plots.
+        overrides : dict, optional
+            Block -> {parameter: SI value} for this run, on top of the runner's (the
+            ``truth`` entries are applied after them).
 
         Returns
         -------
         RunSummary
         """
         params = {k: dict(v) for k, v in self.base.items()}
+        self._apply(params, overrides)
         for key, value in (truth or {}).items():
             (params["gyro"] if key.startswith("drift") else params["platform"])[key] = value
         params["gyro"]["seed"] = seeds["gyro"]
@@ -183,7 +267,25 @@ class Seed000Runner:
 def summarise(
     result: Any, params: dict[str, dict[str, Any]], method: int, index: int, history: bool
 ) -> RunSummary:
-    """Metrics of one run's recording (see the module docstring)."""
+    """Metrics of one run's recording (see the module docstring).
+
+    Parameters
+    ----------
+    result : structured ndarray or mapping
+        The master's recording (``time`` and the platform and filter outputs).
+    params : dict
+        The run's parameters, ``{block: {name: SI value}}``.
+    method : int
+        0 EKF, 1 UPF, 2 KF.
+    index : int
+        Run number.
+    history : bool
+        Keep the time histories needed for the plots.
+
+    Returns
+    -------
+    RunSummary
+    """
     t = result["time"]
     lat = float(params["filter"]["lat"])
     oc = OMEGA_IE * math.cos(lat)
@@ -264,7 +366,18 @@ def summarise(
 
 
 def draw_truth(seed: int) -> dict[str, float]:
-    """A truth drawn from the paper's P0 (azimuth uniform), SI, for ``truth="prior"``."""
+    """A truth drawn from the paper's P0 (azimuth uniform), SI, for ``truth="prior"``.
+
+    Parameters
+    ----------
+    seed : int
+        The run's truth seed (:func:`run_seeds`).
+
+    Returns
+    -------
+    dict
+        ``azimuth0``, ``theta_E0``, ``theta_N0`` [rad] and ``drift[1..3]`` [rad/s].
+    """
     rng = np.random.default_rng(seed)
     return {
         "azimuth0": float(rng.uniform(-math.pi, math.pi)),
@@ -283,6 +396,7 @@ def campaign(
     stop: float | None = None,
     runner: Seed000Runner | None = None,
     history_runs: int = 0,
+    overrides: dict[str, dict[str, float]] | None = None,
 ) -> dict[int, list[RunSummary]]:
     """Run ``runs`` runs per method on the same per-run seeds.
 
@@ -304,6 +418,9 @@ def campaign(
         Reuse a built system.
     history_runs : int
         Keep histories for the first this many runs.
+    overrides : dict, optional
+        Block -> {parameter: SI value} for every run (see :class:`Seed000Runner`), on
+        top of the runner's own; the seeds of the runs do not depend on them.
 
     Returns
     -------
@@ -323,7 +440,9 @@ def campaign(
             if azimuth0_deg is not None:
                 this["azimuth0"] = math.radians(azimuth0_deg)
             for m in methods:
-                out[m].append(runner.run(m, seeds, this, history=i < history_runs))
+                out[m].append(
+                    runner.run(m, seeds, this, history=i < history_runs, overrides=overrides)
+                )
     finally:
         if own:
             runner.close()
@@ -387,6 +506,177 @@ def _stats(summaries: list[RunSummary]) -> dict[str, float]:
         "HE_p95": _p95([s.H_E for s in summaries]),
         "self1": _median([s.t_conv_self[0] for s in summaries]),
     }
+
+
+# ----------------------------------------------------------------------------------------
+# Sensitivity to the accelerometer noise (the paper gives none)
+# ----------------------------------------------------------------------------------------
+def largest_density_within(
+    densities: tuple[float, ...] | list[float],
+    times: tuple[float, ...] | list[float],
+    limit: float = CONV_LIMIT,
+) -> float:
+    """Largest noise density whose time stays within ``limit``, log-log interpolated.
+
+    The times at the swept densities are joined by straight lines in log-log (a power
+    law between neighbours, as ``t ~ N^(2/3)`` of the module docstring); the result is
+    where the line leaving the last swept density with ``time <= limit`` crosses
+    ``limit``.
+
+    Parameters
+    ----------
+    densities : sequence of float
+        Swept densities (> 0, distinct; any order).
+    times : sequence of float
+        Time at each density (> 0; NaN or inf: never converged).
+    limit : float
+        The bound on the time (> 0).
+
+    Returns
+    -------
+    float
+        The crossing density; the largest swept density when every time is within
+        ``limit`` (a lower bound then); NaN when none is. A crossing towards a
+        never-converged neighbour is put at the last density within ``limit``.
+
+    Raises
+    ------
+    ValueError
+        Lengths differ, a density or time <= 0, repeated densities, or ``limit`` <= 0.
+    """
+    d = np.asarray(densities, dtype=float)
+    t = np.asarray(times, dtype=float)
+    if d.shape != t.shape or d.ndim != 1 or d.size == 0:
+        raise ValueError(
+            f"densities and times: expected equal 1-D lengths, got {d.shape} and {t.shape}"
+        )
+    if not (limit > 0.0 and np.all(d > 0.0) and np.all((t > 0.0) | np.isnan(t))):
+        raise ValueError("densities, times and limit: expected > 0 (times may be NaN)")
+    order = np.argsort(d)
+    d, t = d[order], np.where(np.isnan(t), np.inf, t[order])
+    if np.any(np.diff(d) == 0.0):
+        raise ValueError(f"densities: expected distinct values, got {sorted(d.tolist())}")
+    within = np.flatnonzero(t <= limit)
+    if within.size == 0:
+        return math.nan
+    k = int(within[-1])
+    if k == d.size - 1:
+        return float(d[k])
+    if math.isinf(t[k + 1]):
+        return float(d[k])
+    frac = math.log(limit / t[k]) / math.log(t[k + 1] / t[k])
+    return float(d[k] * (d[k + 1] / d[k]) ** frac)
+
+
+@dataclass
+class NoiseSensitivity:
+    """The paper-truth campaign at several accelerometer noise densities.
+
+    Attributes
+    ----------
+    densities : tuple of float
+        Swept white-noise densities [ug/sqrt(Hz)], truth and filter model alike.
+    stats : dict
+        density -> method -> :func:`_stats` of its runs: ``t1``, ``t2`` (median
+        convergence time of position 1, 2 [s]), ``t1_p95``, ``t2_p95`` (95th
+        percentile [s]), ``az_p95`` (|azimuth error| [arcmin]), ``failed``, ``n``, ...
+    crossing : dict
+        method -> largest density [ug/sqrt(Hz)] at which the 95th percentile of the
+        convergence time of both positions is within :data:`CONV_LIMIT`
+        (:func:`largest_density_within`).
+    scenario_density : float
+        The scenario's own ``accel.noise_density`` [ug/sqrt(Hz)].
+    quantum_density : float
+        The filter's model of the pulse quantisation as a white-noise density,
+        ``sqrt(dv_quantum^2 / (6 period))`` [ug/sqrt(Hz)].
+    runs, seed : int
+        Runs per density and method; campaign seed (the same runs at every density).
+    """
+
+    densities: tuple[float, ...]
+    stats: dict[float, dict[int, dict[str, float]]]
+    crossing: dict[int, float]
+    scenario_density: float
+    quantum_density: float
+    runs: int
+    seed: int
+
+
+def noise_sensitivity(
+    runs: int,
+    seed: int,
+    densities_ug: tuple[float, ...] = NOISE_DENSITIES,
+    methods: tuple[int, ...] = (1, 2),
+    runner: Seed000Runner | None = None,
+) -> NoiseSensitivity:
+    """The paper-truth campaign at each accelerometer white-noise density.
+
+    The paper gives no accelerometer noise; the scenario assumes 5 ug/sqrt(Hz), and the
+    convergence time depends on it. At each density the truth's ``accel.noise_density``
+    and the filter's model ``filter.accel_noise`` are set to the same value (the filter
+    stays consistent with the truth); the runs have the same seeds at every density
+    (the same normal draws, scaled). The pulse quantisation (``K1`` = 1e4 pulses per
+    m/s, ``filter.dv_quantum`` = 1e-4 m/s) is unchanged.
+
+    Theory: the azimuth comes from the ``t^2`` coefficient of the integrated
+    accelerometer output (eq. 12-13: the platform tilts about east at ``Oc sin(delta_psi)``),
+    i.e. from the slope ``-g Oc delta_psi`` of the measured specific force, fitted over
+    ``t`` seconds of white noise of density ``N``::
+
+        sigma_psi(t) = sqrt(12) N / (g Oc t^(3/2))
+
+    so the error enters a fixed band (4') at a time ``t ~ N^(2/3)``, for the median run
+    and the 95th percentile alike (8 / 2 ug/sqrt(Hz): x 2.52). Quantisation: the
+    accumulated pulses are off the true velocity by less than one pulse (1e-4 m/s), an
+    error that does not grow with time, and the filter models each period's increment as
+    off by white noise of variance ``dv_quantum^2 / 6`` (4.2 ug/sqrt(Hz) equivalent at
+    ``period`` = 1 s), so its own sigma goes as ``sqrt(N^2 + (4.2 ug/sqrt(Hz))^2)``. At low
+    noise the pulse quantisation takes over and the ``N^(2/3)`` scaling flattens.
+
+    Parameters
+    ----------
+    runs : int
+        Runs per density and method.
+    seed : int
+        Campaign seed (:func:`run_seeds`; the same runs at every density).
+    densities_ug : tuple of float
+        White-noise densities [ug/sqrt(Hz)] (> 0).
+    methods : tuple of int
+        Filters (default UPF and KF; the EKF falls into the mirror solution anyway).
+    runner : Seed000Runner, optional
+        Reuse a built system (its own overrides stay under the swept ones).
+
+    Returns
+    -------
+    NoiseSensitivity
+    """
+    if not densities_ug or not all(d > 0.0 for d in densities_ug):
+        raise ValueError(f"densities_ug: expected values > 0, got {densities_ug!r}")
+    own = runner is None
+    runner = runner or Seed000Runner()
+    stats: dict[float, dict[int, dict[str, float]]] = {}
+    try:
+        scenario = float(runner.base["accel"]["noise_density"]) / UG_SQRT_HZ
+        filt = runner.base["filter"]
+        quantum = math.sqrt(float(filt["dv_quantum"]) ** 2 / (6.0 * float(filt["period"])))
+        for d in densities_ug:
+            density = float(d) * UG_SQRT_HZ  # m/s/sqrt(s)
+            over = {"accel": {"noise_density": density}, "filter": {"accel_noise": density}}
+            res = campaign(runs, seed, methods, runner=runner, overrides=over)
+            stats[float(d)] = {m: _stats(res[m]) for m in methods}
+    finally:
+        if own:
+            runner.close()
+    dens = tuple(float(d) for d in densities_ug)
+    crossing = {
+        m: largest_density_within(
+            dens, [float(np.max([stats[d][m]["t1_p95"], stats[d][m]["t2_p95"]])) for d in dens]
+        )
+        for m in methods
+    }
+    return NoiseSensitivity(
+        dens, stats, crossing, scenario, quantum / UG_SQRT_HZ, int(runs), int(seed)
+    )
 
 
 def _plots(out_dir: Path, fixed: dict[int, RunSummary]) -> list[str]:
@@ -485,7 +775,8 @@ def reproduce(out_dir: Path, runs: int, seed: int) -> str:
     -------
     str
         Markdown: the paper's figures next to ours, Table 1 at the 95th percentile, the
-        large-misalignment table.
+        large-misalignment table, the sensitivity to the accelerometer noise
+        (:func:`noise_sensitivity`, ``runs`` runs of the campaign seed per density).
     """
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -498,6 +789,7 @@ def reproduce(out_dir: Path, runs: int, seed: int) -> str:
             for az in LARGE_AZIMUTHS
         }
         prior = campaign(min(runs, 20), seed + 2, (0, 1, 2), truth="prior", runner=runner)
+        sens = noise_sensitivity(runs, seed, runner=runner)
     finally:
         runner.close()
     elapsed = time.perf_counter() - start
@@ -510,7 +802,71 @@ def reproduce(out_dir: Path, runs: int, seed: int) -> str:
     plots = [f"{where}/{p}" for p in plots]
     st = {m: _stats(main[m]) for m in (0, 1, 2)}
     fixed = {m: main[m][0] for m in (0, 1, 2)}
-    return _markdown(st, fixed, large, prior, runs, seed, plots, elapsed)
+    return _markdown(st, fixed, large, prior, runs, seed, plots, elapsed, sens)
+
+
+def _sensitivity_markdown(sens: NoiseSensitivity) -> list[str]:
+    """The noise-sensitivity table (UPF and KF) and the largest density that meets 70 s."""
+    same = any(math.isclose(d, sens.scenario_density, rel_tol=1e-9) for d in sens.densities)
+    lines = [
+        "Sensitivity to the assumed accelerometer noise (the paper gives none): the "
+        f"paper-truth campaign ({sens.runs} runs, campaign seed {sens.seed}, the same runs "
+        "at every density) with the truth's white noise and the filter's model of it both "
+        "set to each density; pulse quantisation (1e-4 m/s) unchanged. Convergence times of "
+        "position 1 / 2, median and 95th percentile"
+        + (
+            f"; the {sens.scenario_density:g} ug/sqrt(Hz) row is the main table's runs."
+            if same
+            else "."
+        ),
+        "",
+        "| noise [ug/sqrt(Hz)] | UPF convergence median, pos. 1 / 2 [s] | "
+        "UPF 95 %, pos. 1 / 2 [s] | KF 95 %, pos. 1 / 2 [s] | UPF azimuth error 95 % [arcmin] "
+        f"| runs failed UPF / KF (of {sens.runs}) | UPF 95 % <= {CONV_LIMIT:g} s |",
+        "|---|---|---|---|---|---|---|",
+    ]
+
+    def pair(st: dict[str, float] | None, a: str, b: str) -> str:
+        return "-" if st is None else f"{_fmt(st[a], 0)} / {_fmt(st[b], 0)}"
+
+    for d in sens.densities:
+        u, k = sens.stats[d].get(1), sens.stats[d].get(2)
+        name = f"{d:g}"
+        if math.isclose(d, sens.scenario_density, rel_tol=1e-9):
+            name = f"**{d:g} (scenario)**"
+        ok = "-" if u is None else _yes(_within(u["t1_p95"], u["t2_p95"]))
+        fails = " / ".join("-" if s is None else f"{s['failed']}" for s in (u, k))
+        lines.append(
+            f"| {name} | {pair(u, 't1', 't2')} | {pair(u, 't1_p95', 't2_p95')} | "
+            f"{pair(k, 't1_p95', 't2_p95')} | {'-' if u is None else _arcmin(u['az_p95'])} | "
+            f"{fails} | {ok} |"
+        )
+
+    def where(x: float) -> str:
+        if math.isnan(x):
+            return f"at none of the swept densities, down to {min(sens.densities):g} ug/sqrt(Hz)"
+        if x >= max(sens.densities):
+            return f"at every swept density, up to {x:g} ug/sqrt(Hz)"
+        return f"up to {x:.1f} ug/sqrt(Hz)"
+
+    kf = f" (KF: {where(sens.crossing[2])})" if 2 in sens.crossing else ""
+    lines += [
+        "",
+        f"The UPF's 95th-percentile convergence time is within {CONV_LIMIT:g} s in both "
+        f"positions {where(sens.crossing.get(1, math.nan))}{kf}, interpolated in log-log "
+        "between the swept densities; the scenario keeps its assumed "
+        f"{sens.scenario_density:g} ug/sqrt(Hz) (no tuning to pass). Theory: the azimuth "
+        "comes from the t^2 coefficient of the integrated accelerometer output, so its sigma "
+        "goes as noise x t^(-3/2) and the time to converge into a fixed band as "
+        "noise^(2/3), until at low noise the 1e-4 m/s pulse quantisation (which the filter "
+        f"models as {sens.quantum_density:.1f} ug/sqrt(Hz) of white noise) takes over.",
+    ]
+    return lines
+
+
+def _within(*times: float) -> bool:
+    """Every time within :data:`CONV_LIMIT` (NaN: not)."""
+    return all(t <= CONV_LIMIT for t in times)
 
 
 def _yes(ok: bool) -> str:
@@ -526,6 +882,7 @@ def _markdown(
     seed: int,
     plots: list[str],
     elapsed: float,
+    sens: NoiseSensitivity | None = None,
 ) -> str:
     e, u, k = st[0], st[1], st[2]
     lines = [
@@ -544,8 +901,9 @@ def _markdown(
         "|---|---|---|---|---|---|---|",
         f"| azimuth convergence, position 1 / 2 [s] (median) | 160 | 70 | "
         f"{_fmt(e['t1'], 0)} / {_fmt(e['t2'], 0)} | {_fmt(u['t1'], 0)} / {_fmt(u['t2'], 0)} | "
-        f"{_fmt(k['t1'], 0)} / {_fmt(k['t2'], 0)} | UPF <= 70 s: "
-        f"{_yes(u['t1'] <= 70 and u['t2'] <= 70)} |",
+        f"{_fmt(k['t1'], 0)} / {_fmt(k['t2'], 0)} | UPF <= {CONV_LIMIT:g} s: median "
+        f"{_yes(_within(u['t1'], u['t2']))}, 95 % "
+        f"{_yes(_within(u['t1_p95'], u['t2_p95']))} |",
         f"| same, 95th percentile [s] | - | - | {_fmt(e['t1_p95'], 0)} / {_fmt(e['t2_p95'], 0)} | "
         f"{_fmt(u['t1_p95'], 0)} / {_fmt(u['t2_p95'], 0)} | "
         f"{_fmt(k['t1_p95'], 0)} / {_fmt(k['t2_p95'], 0)} | |",
@@ -648,6 +1006,7 @@ def _markdown(
             f"{sum(x.failed for x in prior[m])}/{len(prior[m])} |"
             for m in (0, 1, 2)
         ],
+        *([] if sens is None else ["", *_sensitivity_markdown(sens)]),
         "",
         "Plots of the fixed-seed run (run 0):",
         "",
