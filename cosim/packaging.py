@@ -23,12 +23,40 @@ MODELS_DIR = Path(models.__file__).resolve().parent
 # A `models` package imported earlier in the same process from another FMU's resources
 # may point to a folder deleted when that FMU was unloaded: forget it, so that this FMU
 # imports its own copy.
+# pythonfmu 0.7's binary also has a use-after-free at process exit: a C++ static
+# shared_ptr is destroyed by the exit handlers, then the library's ELF destructor
+# (finalizePythonInterpreter) decrements the freed control block again, which corrupts
+# the heap ("corrupted double-linked list", SIGABRT) at random. In a Python host the
+# entry script therefore pins the library and, from Python's atexit (before the C exit
+# handlers), calls finalizePythonInterpreter itself: the shared_ptr is empty by the time
+# the two faulty finalisers run, and both do nothing. Hosts where the FMU started Python
+# (no sys.orig_argv) are left as pythonfmu made them. pythonfmu puts the instance's
+# resources folder first on sys.path just before it runs this script, which is how the
+# script finds its own binary (a second copy of the same FMU finds the module cached,
+# but the per-instance execution still runs).
 ENTRY_SCRIPT = """\
+import atexit
+import ctypes
 import os
 import sys
 
 _kept = sys.__dict__.setdefault("_ins_cosim_fmu_namespaces", [])
 _kept.append(globals())
+
+_pinned = sys.__dict__.setdefault("_ins_cosim_fmu_libraries", {{}})
+if sys.platform.startswith("linux") and sys.orig_argv and sys.path:
+    _binary = os.path.join(
+        os.path.dirname(os.path.abspath(sys.path[0])), "binaries", "linux64", "{name}.so"
+    )
+    if _binary not in _pinned and os.path.isfile(_binary):
+        try:
+            _library = ctypes.CDLL(_binary, mode=os.RTLD_NOLOAD | os.RTLD_NOW)
+            _release = _library.finalizePythonInterpreter
+        except (OSError, AttributeError):
+            _release = None
+        if _release is not None:
+            _pinned[_binary] = _library
+            atexit.register(_release)
 
 _previous = sys.modules.get("models")
 if _previous is not None:
