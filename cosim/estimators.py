@@ -1642,6 +1642,10 @@ class UnscentedParticleFilter:
         Normalised.
     proposal_mean : ndarray, shape (N, n)
         UKF posterior means ``m^i`` of the last step.
+    particle_nis : ndarray, shape (N,)
+        Normalised innovation squared ``y_i^T S_i^-1 y_i`` of each particle's UKF update
+        in the last step (chi-square with ``dim_z`` degrees of freedom for a consistent
+        particle); NaN before the first update and after a step without ``z``.
     Q : ndarray, shape (n, n)
     R : ndarray, shape (m, m)
     resampled : bool
@@ -1708,6 +1712,7 @@ class UnscentedParticleFilter:
         self.particle_P = np.broadcast_to(np.eye(n), (self.N, n, n)).copy()
         self.weights = np.full(self.N, 1.0 / self.N)
         self.proposal_mean = self.particles.copy()
+        self.particle_nis = np.full(self.N, np.nan)
         self.resampled = False
         self.n_resamples = 0
         self.last_ess = float(self.N)
@@ -1768,6 +1773,7 @@ class UnscentedParticleFilter:
         self.particle_P = Pa
         self.weights = w
         self.proposal_mean = parts.copy()
+        self.particle_nis = np.full(N, np.nan)
 
     # -- estimates --------------------------------------------------------------------------
     @property
@@ -1863,8 +1869,11 @@ class UnscentedParticleFilter:
                 self.vectorized, robust=True,
             )  # fmt: skip
             mean, cov = out["x"], out["P"]
+            u = np.linalg.solve(out["chol_S"], out["y"][..., None])[..., 0]
+            particle_nis = np.sum(u * u, axis=-1)
         else:
             mean, cov = xp, Pp
+            particle_nis = np.full(N, np.nan)
 
         if self.proposal == "mean":
             if z is not None:
@@ -1896,6 +1905,7 @@ class UnscentedParticleFilter:
         self.particles = new
         self.particle_P = cov
         self.proposal_mean = mean
+        self.particle_nis = particle_nis
         self.resampled = False
         self.last_ess = self.ess
         if self.last_ess < self.resample_threshold:
@@ -1903,6 +1913,7 @@ class UnscentedParticleFilter:
             self.particles = self.particles[idx]
             self.particle_P = self.particle_P[idx]
             self.proposal_mean = self.proposal_mean[idx]
+            self.particle_nis = self.particle_nis[idx]
             self.weights = np.full(N, 1.0 / N)
             self.resampled = True
             self.n_resamples += 1

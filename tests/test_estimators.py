@@ -503,6 +503,7 @@ def test_upf_with_one_particle_equals_the_ukf() -> None:
     upf.initialize(x0, P0, spread=False)
     ukf = UnscentedKalmanFilter(2, 2, pendulum_fx, pendulum_hx, MerweScaledSigmaPoints(2, 0.5))
     ukf.Q, ukf.R, ukf.x, ukf.P = Q, R, x0, P0
+    assert np.isnan(upf.particle_nis[0])  # no update yet
     truth = x0.copy()
     for _ in range(60):
         truth = pendulum_fx(truth, 0.05)
@@ -512,8 +513,12 @@ def test_upf_with_one_particle_equals_the_ukf() -> None:
         upf.step(z, 0.05)
         np.testing.assert_allclose(upf.x, ukf.x, rtol=0, atol=1e-12)
         np.testing.assert_allclose(upf.P, ukf.P, rtol=0, atol=1e-12)
+        # the particle's innovation statistic is the UKF's
+        assert upf.particle_nis[0] == pytest.approx(nis(ukf.y, ukf.S), rel=1e-9)
         assert upf.weights[0] == 1.0 and not upf.resampled
     assert upf.n_resamples == 0
+    upf.step(None, 0.05)  # prediction only: no innovation
+    assert np.isnan(upf.particle_nis[0])
 
 
 def test_upf_sampling_proposal_is_the_per_particle_ukf() -> None:

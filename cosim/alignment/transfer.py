@@ -161,10 +161,10 @@ relative attitude: roll, pitch, heading of the slave relative to the master. Its
 ``rpy_sigma`` maps ``P_phi`` through ``C_n_b`` and the inverse Euler-rate matrix of the
 relative attitude. The rigid mounting estimate is the relative attitude minus the flexure
 estimate ``flex`` (master axes, with its own sigma). In stage 1 the outputs are those of
-the most probable hypothesis (``nis`` is 0 there). Also: ``rel_rpy`` (the estimated
-relative attitude, from the master's reported attitude), bias and drift estimates with
-their sigmas, ``nees`` (attitude error against ``P``, 3 degrees of freedom), ``nis`` and
-``stage``.
+the most probable hypothesis (``nis`` too: its own UKF's innovation). Also: ``rel_rpy``
+(the estimated relative attitude, from the master's reported attitude), bias and drift
+estimates with their sigmas, ``nees`` (attitude error against ``P``, 3 degrees of
+freedom), ``nis`` (0 before the first update) and ``stage``.
 
 Limits: the block must step every macro step (rate 1) with a constant step that divides
 ``period``: its strapdown needs every increment; it starts once it has five master
@@ -1481,8 +1481,8 @@ class TransferAlignment(Block):
         if self.stage == 1.0:
             self._bank.step(z, T, Q=Q, R=R, fx_args={"sums": sums})
             self._show_bank()
-            self.nis = 0.0
             bank = self._bank
+            self.nis = float(bank.particle_nis[self._best])
             sig_best = math.sqrt(bank.particle_P[self._best][lay.heading, lay.heading])
             # hypotheses that converged onto the best one's heading count with it
             gap = np.abs(wrap_pi(bank.particles[:, lay.heading] - self._x_show[lay.heading]))
