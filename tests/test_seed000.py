@@ -17,11 +17,16 @@ import pytest
 from cosim.reproduce import seed000
 from cosim.reproduce.seed000 import (
     ARCMIN,
+    CONV_LIMIT,
     LARGE_AZIMUTHS,
     TABLE1,
     UG_SQRT_HZ,
+    NoiseSensitivity,
     Seed000Runner,
+    _sensitivity_markdown,
+    _sensitivity_plot,
     campaign,
+    convergence_bound,
     largest_density_within,
     noise_sensitivity,
     reproduce,
@@ -130,6 +135,58 @@ def runner_noise(runner: Seed000Runner) -> tuple[float, float]:
     """The truth's and the filter's white-noise density of the last run [m/s/sqrt(s)]."""
     blocks = runner.system.blocks
     return blocks["accel"].instance.noise_density, blocks["filter"].instance.accel_noise
+
+
+def test_convergence_bound_is_the_fisher_information_of_the_slope_fit() -> None:
+    # Independent of the closed form: the Fisher information of the sampled model
+    # a_k = -g theta_E - g Oc psi t_k + w_k, w_k ~ N(0, N^2 / dt), for (theta_E, psi);
+    # at the bound's time z * sqrt(inv(F)[psi, psi]) must equal the band (z = 1.96 for
+    # 95 %, 0.674 for 50 %). Sampling at 0.01 s moves it by < 1e-3.
+    g, lat = 9.7966, math.radians(45.0)
+    oc = OMEGA_IE * math.cos(lat)
+    dt = 0.01
+    for density, prob, z in ((5.0, 0.95, 1.959964), (2.0, 0.5, 0.674490), (8.0, 0.95, 1.959964)):
+        t = convergence_bound(density, g, lat, prob)
+        tk = (np.arange(round(t / dt)) + 0.5) * dt
+        H = np.column_stack([np.full_like(tk, -g), -g * oc * tk])
+        F = H.T @ H * dt / (density * UG_SQRT_HZ) ** 2
+        sigma = math.sqrt(np.linalg.inv(F)[1, 1]) / ARCMIN
+        assert z * sigma == pytest.approx(seed000.CONV_BAND, rel=1e-3), (density, prob)
+    # t ~ N^(2/3), arrays keep their shape, bad input is refused
+    pair = convergence_bound(np.array([2.0, 16.0]), g, lat)
+    assert pair.shape == (2,) and pair[1] / pair[0] == pytest.approx(4.0, rel=1e-12)
+    for bad in ((0.0, g, lat, 0.95), (5.0, g, lat, 1.0), (5.0, -g, lat, 0.5)):
+        with pytest.raises(ValueError, match="convergence_bound"):
+            convergence_bound(*bad)
+
+
+def _sensitivity(times_upf: dict[float, float]) -> NoiseSensitivity:
+    """A hand-made sensitivity study (UPF and KF alike) for the report's table and plot."""
+    stats = {
+        d: {
+            m: {"t1": t / 2, "t2": t / 2, "t1_p95": t, "t2_p95": t - 1, "az_p95": 0.8, "failed": 0}
+            for m in (1, 2)
+        }
+        for d, t in times_upf.items()
+    }
+    dens = tuple(times_upf)
+    crossing = {m: largest_density_within(dens, list(times_upf.values())) for m in (1, 2)}
+    return NoiseSensitivity(
+        dens, stats, crossing, 5.0, 4.2, 30, FIXED_SEED, 9.7966, math.radians(45.0)
+    )
+
+
+def test_sensitivity_report_gives_the_bound_next_to_the_campaign(tmp_path: Path) -> None:
+    sens = _sensitivity({2.0: 40.0, 5.0: 88.0, 8.0: 120.0})
+    text = "\n".join(_sensitivity_markdown(sens))
+    # the 5 ug/sqrt(Hz) row: UPF 95 % 88 / 87 s, bound 68 s, not within 70 s
+    assert "| **5 (scenario)** | 44 / 44 | 88 / 87 | 88 / 87 | 0.80 | 0 / 0 | 68 | **no** |" in text
+    # the bound reaches 70 s at 5 * (70 / 68.457)^1.5 = 5.17 ug/sqrt(Hz)
+    expected = 5.0 * (CONV_LIMIT / convergence_bound(5.0, 9.7966, math.radians(45.0))) ** 1.5
+    assert f"reaches {CONV_LIMIT:g} s at {expected:.1f} ug/sqrt(Hz)" in text
+    assert expected == pytest.approx(5.17, abs=0.01)
+    name = _sensitivity_plot(tmp_path, sens)
+    assert name == "seed000_noise.png" and (tmp_path / name).stat().st_size > 10_000
 
 
 @pytest.fixture(scope="module")
@@ -250,3 +307,5 @@ def test_reproduce_writes_tables_and_plots(tmp_path: Path) -> None:
         assert f"| {az:g} deg |" in text
     assert (tmp_path / "seed000_azimuth.png").stat().st_size > 10_000
     assert (tmp_path / "seed000_level.png").stat().st_size > 10_000
+    assert (tmp_path / "seed000_noise.png").stat().st_size > 10_000
+    assert "![seed000_noise]" in text
