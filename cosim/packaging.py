@@ -44,7 +44,7 @@ _kept = sys.__dict__.setdefault("_ins_cosim_fmu_namespaces", [])
 _kept.append(globals())
 
 _pinned = sys.__dict__.setdefault("_ins_cosim_fmu_libraries", {{}})
-if sys.platform.startswith("linux") and sys.orig_argv and sys.path:
+if sys.platform.startswith("linux") and getattr(sys, "orig_argv", None) and sys.path:
     _binary = os.path.join(
         os.path.dirname(os.path.abspath(sys.path[0])), "binaries", "linux64", "{name}.so"
     )
