@@ -24,7 +24,8 @@ import cosim
 from benchmarks.monolithic import CHAIN_BLOCKS, CHAIN_SCENARIO
 from benchmarks.timing import fmu_dir, load_note
 
-#: Simulated time of the long runs [s] (libcosim takes about 2 ms per step here).
+#: Simulated time of the long runs [s] (libcosim: about 0.9 ms per step on an idle machine,
+#: up to 13 ms when other processes hold the cores).
 LONG = 40.0
 
 
