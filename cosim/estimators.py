@@ -193,14 +193,24 @@ def _spd_solve(S: FloatArray, B: FloatArray, name: str) -> tuple[FloatArray, Flo
     return np.linalg.solve(S, B), L
 
 
-def _gauss_logpdf(r: FloatArray, L: FloatArray) -> FloatArray:
-    """Log density of residuals ``r (..., d)`` under N(0, L L^T), L lower ``(..., d, d)``."""
+def _mahalanobis2(r: FloatArray, L: FloatArray) -> FloatArray:
+    """Squared Mahalanobis norms ``r^T (L L^T)^-1 r`` of ``r (..., d)``, L lower ``(..., d, d)``."""
     if L.ndim > 2 or r.ndim > 1:
         L, r = _broadcast_batch(L, r)
     u = np.linalg.solve(L, r[..., None])[..., 0]
+    return np.sum(u * u, axis=-1)
+
+
+def _gauss_logpdf(r: FloatArray, L: FloatArray, m2: FloatArray | None = None) -> FloatArray:
+    """Log density of residuals ``r (..., d)`` under N(0, L L^T), L lower ``(..., d, d)``.
+
+    ``m2``: their :func:`_mahalanobis2` when the caller has it already.
+    """
+    if m2 is None:
+        m2 = _mahalanobis2(r, L)
     d = r.shape[-1]
     half_logdet = np.sum(np.log(np.diagonal(L, axis1=-2, axis2=-1)), axis=-1)
-    return -0.5 * np.sum(u * u, axis=-1) - half_logdet - 0.5 * d * _LOG_2PI
+    return -0.5 * m2 - half_logdet - 0.5 * d * _LOG_2PI
 
 
 def _broadcast_batch(M: FloatArray, v: FloatArray) -> tuple[FloatArray, FloatArray]:
@@ -1869,15 +1879,14 @@ class UnscentedParticleFilter:
                 self.vectorized, robust=True,
             )  # fmt: skip
             mean, cov = out["x"], out["P"]
-            u = np.linalg.solve(out["chol_S"], out["y"][..., None])[..., 0]
-            particle_nis = np.sum(u * u, axis=-1)
+            particle_nis = _mahalanobis2(out["y"], out["chol_S"])
         else:
             mean, cov = xp, Pp
             particle_nis = np.full(N, np.nan)
 
         if self.proposal == "mean":
             if z is not None:
-                log_w = log_w + _gauss_logpdf(out["y"], out["chol_S"])
+                log_w = log_w + _gauss_logpdf(out["y"], out["chol_S"], particle_nis)
             new = mean
         else:
             A, half_logdet = _sqrt_psd(cov)

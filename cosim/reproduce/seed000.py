@@ -761,7 +761,7 @@ def _sensitivity_plot(out_dir: Path, sens: NoiseSensitivity) -> str:
     fig, ax = plt.subplots(figsize=(8, 5))
     styles = {1: ("tab:blue", "o"), 2: ("tab:green", "s")}
     for m, (colour, marker) in styles.items():
-        if all(m not in sens.stats[x] for x in d):
+        if any(m not in sens.stats[x] for x in d):
             continue
         p95 = [max(sens.stats[x][m]["t1_p95"], sens.stats[x][m]["t2_p95"]) for x in d]
         med = [max(sens.stats[x][m]["t1"], sens.stats[x][m]["t2"]) for x in d]
@@ -991,7 +991,7 @@ def _sensitivity_markdown(sens: NoiseSensitivity) -> list[str]:
         "only) says when 95 % of the runs of *any* unbiased estimator can be inside "
         f"{CONV_BAND:g}'; our time asks the error to stay inside, so it comes later. At "
         f"{sens.scenario_density:g} ug/sqrt(Hz) the bound is "
-        f"{convergence_bound(sens.scenario_density, sens.g, sens.lat):.0f} s, and it reaches "
+        f"{t_scenario:.0f} s, and it reaches "
         f"{CONV_LIMIT:g} s at {n_star:.1f} ug/sqrt(Hz): a 95th-percentile convergence within "
         f"{CONV_LIMIT:g} s at the assumed noise leaves no filter any margin "
         "(`seed000_noise.png`).",
