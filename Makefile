@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 FMUDIR := fmus/build
-MODEL_SOURCES := $(wildcard models/*.py) cosim/packaging.py
+MODEL_SOURCES := $(wildcard models/*.py) cosim/interop/packaging.py
 
 .PHONY: all setup fmus demo test test-slow bench lint format clean
 

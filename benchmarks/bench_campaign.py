@@ -1,7 +1,7 @@
 """Campaign scaling: the same 40-run campaign with 2 worker processes vs 1.
 
 The campaign of ``scenarios/transfer_alignment.toml`` (120 s transfer alignment with
-the UKF, every requirement judged), 40 runs, run by :func:`cosim.campaign.run_campaign`
+the UKF, every requirement judged), 40 runs, run by :func:`cosim.verify.campaign.run_campaign`
 with ``workers=1`` (in this process) and ``workers=2`` (two spawned processes, each
 building the blocks once and resetting them between runs). The figure is the speed-up
 ``T(1 worker) / T(2 workers)`` of the whole campaign, process start-up included. Both
@@ -36,7 +36,7 @@ def _cpu() -> float:
 
 def _campaign(out: Path, workers: int) -> tuple[float, float, dict[int, Any]]:
     """Wall time [s], CPU time [s] and the metrics of every run of one campaign."""
-    from cosim.campaign import run_campaign
+    from cosim.verify.campaign import run_campaign
 
     cpu = _cpu()
     start = time.perf_counter()
@@ -49,7 +49,7 @@ def bench() -> list[dict[str, Any]]:
     """Row: campaign speed-up with two workers."""
     row: dict[str, Any] = {"name": NAME, "ratio": None, "target": ">= 1.8", "met": None}
     try:
-        import cosim.campaign  # noqa: F401
+        import cosim.verify.campaign  # noqa: F401
         from cosim import alignment
 
         ready = SCENARIO.is_file() and "TransferAlignment" in alignment.registry()

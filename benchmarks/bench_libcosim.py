@@ -3,7 +3,7 @@
 Both run the same four FMUs of the transfer chain (``benchmarks/transfer_chain.toml``)
 with the same 10 ms step and Jacobi coupling (libcosim's algorithm; the outputs are
 checked to agree), recording every output. libcosim runs in a child process
-(:mod:`cosim.libcosim_runner`), so each of its runs pays a process start and loads the
+(:mod:`cosim.interop.libcosim_runner`), so each of its runs pays a process start and loads the
 FMUs anew; ours loads them in this process.
 
 The judged figure is the ratio of the *marginal* cost of a macro step, from a long and
@@ -52,7 +52,7 @@ def _ours(fmus: Path, stop: float) -> tuple[float, cosim.RunResult]:
 
 def _theirs(fmus: Path, stop: float, observe: list[tuple[str, str]]) -> tuple[float, np.ndarray]:
     """Wall time of one whole run by libcosim (child process, FMU loading included)."""
-    from cosim.libcosim_runner import run_libcosim
+    from cosim.interop.libcosim_runner import run_libcosim
 
     start = time.perf_counter()
     sc = _scenario(fmus, stop)

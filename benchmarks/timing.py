@@ -79,7 +79,7 @@ def fmu_dir(models: list[str]) -> Path:
     out = FMU_DIR / "bench"
     if not fresh(out):
         import models as registry
-        from cosim.packaging import build_fmu
+        from cosim.interop.packaging import build_fmu
 
         classes = registry.registry()
         for name in models:

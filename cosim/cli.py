@@ -100,7 +100,7 @@ def run(scenario: Path, out: Path, fmu_dir: Path | None, stop: str | None, plot:
     csv, meta_file = result.save(out)
     click.echo(f"wrote {csv} ({len(result.data)} rows) and {meta_file}")
     if plot:
-        from cosim.plots import plot_result
+        from cosim.verify.plots import plot_result
 
         png = plot_result(result, out / "results.png", title=sc.name)
         click.echo(f"wrote {png}")
@@ -156,7 +156,7 @@ def fmus(fmu_dir: Path, build: bool) -> None:
     from cosim.blocks import _sha256
 
     if build:
-        from cosim.packaging import build_all
+        from cosim.interop.packaging import build_all
 
         for path in build_all(fmu_dir):
             click.echo(f"built {path}")
@@ -219,8 +219,8 @@ def verify(
     Exit code: 0 all satisfied, 1 any violated, 2 any undecided (none violated),
     3 bad input, 130 interrupted (finished runs are kept: rerun with --resume).
     """
-    from cosim.campaign import CampaignInterrupted, run_campaign
-    from cosim.report import write_reports
+    from cosim.verify.campaign import CampaignInterrupted, run_campaign
+    from cosim.verify.report import write_reports
 
     try:
         campaign = run_campaign(
@@ -267,8 +267,8 @@ def check_fmu(fmu: Path, role: str, rename_file: Path | None, block: str | None)
 
     Exit code 0 when it fills the role (with the printed rename map), 1 when it does not.
     """
-    from cosim.interfaces import check_fmu as check_role
-    from cosim.interfaces import format_report, read_rename_file
+    from cosim.interop.interfaces import check_fmu as check_role
+    from cosim.interop.interfaces import format_report, read_rename_file
 
     try:
         rename = read_rename_file(rename_file) if rename_file is not None else None
@@ -291,7 +291,7 @@ def check_fmu(fmu: Path, role: str, rename_file: Path | None, block: str | None)
 )
 def export_ssp(scenario: Path, out: Path, fmu_dir: Path) -> None:
     """Write SCENARIO's FMU blocks, connections and parameters as an SSP 1.0 archive OUT."""
-    from cosim.ssp import export_ssp as export
+    from cosim.interop.ssp import export_ssp as export
 
     try:
         result = export(scenario, out, fmu_dir)

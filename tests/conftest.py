@@ -17,7 +17,7 @@ ROOT = TESTS.parent
 @pytest.fixture(scope="session")
 def fmu_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """Every model of ``models/`` built into FMUs by the same code as ``make fmus``."""
-    from cosim.packaging import build_all
+    from cosim.interop.packaging import build_all
 
     out = tmp_path_factory.mktemp("fmus")
     build_all(out)
@@ -29,7 +29,7 @@ def faulty_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The ``testblocks.Faulty`` block as an FMU (fails on purpose)."""
     from testblocks import Faulty
 
-    from cosim.packaging import build_fmu
+    from cosim.interop.packaging import build_fmu
 
     out = tmp_path_factory.mktemp("faulty")
     return build_fmu(Faulty, out, extra_files=(TESTS / "testblocks.py",))
@@ -38,7 +38,7 @@ def faulty_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="session")
 def vendor_imu_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The C vendor IMU of ``fmus/vendor_example`` compiled into a binary FMU 2.0."""
-    from cosim.cbuild import build_c_fmu
+    from cosim.interop.cbuild import build_c_fmu
 
     out = tmp_path_factory.mktemp("vendor_imu")
     return build_c_fmu(ROOT / "fmus" / "vendor_example", out / "VendorImu.fmu")
@@ -47,7 +47,7 @@ def vendor_imu_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
 @pytest.fixture(scope="session")
 def fmi3_ramp_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """The FMI 3.0 co-simulation fixture ``tests/fixtures/fmi3_ramp`` compiled from C."""
-    from cosim.cbuild import build_c_fmu
+    from cosim.interop.cbuild import build_c_fmu
 
     out = tmp_path_factory.mktemp("fmi3_ramp")
     return build_c_fmu(TESTS / "fixtures" / "fmi3_ramp", out / "Ramp.fmu")

@@ -1,7 +1,7 @@
-"""Overlapping Allan deviation (cosim.allan) against the theory of its noise terms.
+"""Overlapping Allan deviation (cosim.estimation.allan) against the theory of its noise terms.
 
 Tolerances: the estimate's relative standard error is ``1 / sqrt(2 edf)`` with the
-equivalent degrees of freedom of NIST SP 1065 (``cosim.allan.relative_error``); each
+equivalent degrees of freedom of NIST SP 1065 (``cosim.estimation.allan.relative_error``); each
 check allows four of those standard errors (a fixed seed makes the outcome
 deterministic; four sigma keeps it robust to a change of generator stream).
 """
@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosim.allan import (
+from cosim.estimation.allan import (
     allan_deviation,
     allan_variance,
     cluster_sizes,
@@ -39,7 +39,7 @@ def test_white_rate_noise_follows_n_over_sqrt_tau() -> None:
 
 def test_rate_random_walk_follows_k_sqrt_tau_over_3() -> None:
     # Theory: for y_k = y_(k-1) + K sqrt(dt) w_k (sampled random walk) the exact
-    # discrete Allan variance is K^2 (tau / 3 + dt^2 / (6 tau)) (cosim.allan docstring).
+    # discrete Allan variance is K^2 (tau / 3 + dt^2 / (6 tau)) (cosim.estimation.allan docstring).
     k_rrw = 2.0e-7  # rad/s/sqrt(s)
     rng = np.random.default_rng(12)
     y = np.cumsum(k_rrw * np.sqrt(DT) * rng.standard_normal(N_SAMPLES))

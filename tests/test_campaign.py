@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.campaign import (
+from cosim.errors import ScenarioError
+from cosim.verify.campaign import (
     CampaignError,
     WorkerSpec,
     latin_hypercube_normal,
@@ -19,8 +20,7 @@ from cosim.campaign import (
     run_one,
     run_seeds,
 )
-from cosim.errors import ScenarioError
-from cosim.requirements import SATISFIED, UNDECIDED, VIOLATED
+from cosim.verify.requirements import SATISFIED, UNDECIDED, VIOLATED
 
 TESTS = Path(__file__).resolve().parent
 ROOT = TESTS.parent
@@ -213,7 +213,7 @@ def converging_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """``testblocks.Converging`` (a stand-in alignment filter) as an FMU."""
     from testblocks import Converging
 
-    from cosim.packaging import build_fmu
+    from cosim.interop.packaging import build_fmu
 
     out = tmp_path_factory.mktemp("converging")
     return build_fmu(Converging, out, extra_files=(TESTS / "testblocks.py",))

@@ -1,4 +1,4 @@
-"""Tests of cosim.estimators: KF, EKF, UKF, UPF, Van Loan, observability, resampling.
+"""Tests of cosim.estimation: KF, EKF, UKF, UPF, Van Loan, observability, resampling.
 
 Every stochastic test uses a fixed ``numpy.random.default_rng`` seed, so each is
 deterministic. Statistical bounds come from theory where there is one (chi-square
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.linalg import expm, solve_continuous_lyapunov
 
-from cosim.estimators import (
+from cosim.estimation import (
     CovarianceError,
     EstimatorTypeError,
     ExtendedKalmanFilter,

@@ -17,7 +17,7 @@ from fmpy.validation import validate_fmu
 
 import models
 from cosim.blocks import REAL, FmuHost, InProcessHost
-from cosim.references import MAX_STEPS, REFERENCE_DIR, drive, reference_run
+from cosim.interop.references import MAX_STEPS, REFERENCE_DIR, drive, reference_run
 from cosim.results import RunResult
 
 BLOCKS = models.registry()
@@ -88,9 +88,9 @@ def test_in_process_equals_fmu(fmu_dir: Path, name: str) -> None:
 
 @pytest.mark.parametrize("name", NAMES)
 def test_matches_its_reference_result(name: str) -> None:
-    """The model's output equals models/reference/<name>.csv (python -m cosim.references)."""
+    """The output equals models/reference/<name>.csv (python -m cosim.interop.references)."""
     ref_file = REFERENCE_DIR / f"{name}.csv"
-    assert ref_file.exists(), f"no reference for {name}: run `python -m cosim.references`"
+    assert ref_file.exists(), f"no reference for {name}: run `python -m cosim.interop.references`"
     ref = RunResult.load(ref_file).data
     now = reference_run(BLOCKS[name])
     assert ref.dtype.names == now.dtype.names

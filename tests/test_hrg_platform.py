@@ -10,7 +10,7 @@ import pytest
 from scipy.linalg import expm
 
 from cosim.blocks import FmuHost, InProcessHost
-from cosim.references import drive
+from cosim.interop.references import drive
 from models.conventions import rot_z, rotvec_to_dcm
 from models.hrg_platform import HrgPlatform, indexing_profile, split_attitude
 

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from cosim.allan import allan_deviation
+from cosim.estimation.allan import allan_deviation
 from models.hrg_platform_gyro import HrgPlatformGyro
 
 OMEGA_IE = 7.292115e-5  # rad/s

@@ -32,7 +32,7 @@ from cosim.alignment.hrg_two_position import (
     predict_dv,
     tilt_jacobian,
 )
-from cosim.estimators import wrap_angle
+from cosim.estimation import wrap_angle
 from models.conventions import rot_z
 from models.earth import OMEGA_IE
 from models.hrg_platform import HrgPlatform

@@ -13,7 +13,7 @@ import pytest
 import models
 from cosim.blocks import InProcessHost, Variable, apply_rename
 from cosim.errors import FmuError
-from cosim.interfaces import (
+from cosim.interop.interfaces import (
     InterfaceError,
     available_roles,
     check_fmu,

@@ -2,7 +2,7 @@
 
 With Jacobi coupling our master and libcosim must give the same outputs (1e-12). The
 libcosim run uses the C library shipped in the libcosimpy wheel (see
-cosim/libcosim_runner.py for why it is driven through ctypes and in a child process).
+cosim/interop/libcosim_runner.py for why it is driven through ctypes and in a child process).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 import cosim
-from cosim.libcosim_runner import LibcosimError, run_libcosim
+from cosim.interop.libcosim_runner import LibcosimError, run_libcosim
 
 ROOT = Path(__file__).resolve().parents[1]
 

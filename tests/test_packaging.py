@@ -1,4 +1,4 @@
-"""The FMU entry script of ``cosim.packaging``: what it does inside a host's interpreter."""
+"""The FMU entry script of ``cosim.interop.packaging``: what it does inside a host's interpreter."""
 
 from __future__ import annotations
 

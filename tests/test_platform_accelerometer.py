@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from cosim.allan import allan_deviation
+from cosim.estimation.allan import allan_deviation
 from models.platform_accelerometer import PlatformAccelerometer
 
 G = 9.7966  # m/s2, seed 000

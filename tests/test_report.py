@@ -10,9 +10,9 @@ from html.parser import HTMLParser
 
 import pytest
 
-from cosim.campaign import run_campaign, run_seeds
-from cosim.report import write_reports
-from cosim.requirements import SATISFIED, UNDECIDED, VIOLATED
+from cosim.verify.campaign import run_campaign, run_seeds
+from cosim.verify.report import write_reports
+from cosim.verify.requirements import SATISFIED, UNDECIDED, VIOLATED
 
 SCENARIO = """
 [master]

@@ -9,7 +9,8 @@ import pytest
 from scipy import stats
 
 from cosim.errors import ScenarioError
-from cosim.requirements import (
+from cosim.results import RunResult
+from cosim.verify.requirements import (
     SATISFIED,
     UNDECIDED,
     VIOLATED,
@@ -27,7 +28,6 @@ from cosim.requirements import (
     wilks_upper_bound,
     wilks_upper_rank,
 )
-from cosim.results import RunResult
 
 UNITS = {
     "time": "s",

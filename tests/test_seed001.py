@@ -14,8 +14,6 @@ import numpy as np
 import pytest
 
 from cosim.alignment.transfer import covariance_analysis
-from cosim.campaign import prepare
-from cosim.campaign import run_seeds as campaign_run_seeds
 from cosim.reproduce import update_readme
 from cosim.reproduce.seed001 import (
     HEADING_LIMIT,
@@ -33,6 +31,8 @@ from cosim.reproduce.seed001 import (
     sensor_draws,
     stats,
 )
+from cosim.verify.campaign import prepare
+from cosim.verify.campaign import run_seeds as campaign_run_seeds
 
 ROOT = Path(__file__).resolve().parents[1]
 

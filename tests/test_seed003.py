@@ -10,7 +10,7 @@ given time is N(0, sigma^2) with sigma its own 1-sigma:
   Wide, but a filter whose sigma is off by a factor of two, or a heading stuck at the
   single-position limit, fails them.
 * ANEES of N runs (3 angles): ``N * ANEES ~ chi-square(3 N)``
-  (:func:`cosim.estimators.anees_bounds`, 99 % here).
+  (:func:`cosim.estimation.anees_bounds`, 99 % here).
 
 The seeds are fixed, so each test is deterministic; the bands say how unlikely a
 failure of a correct filter would be. The slow tests (50 runs, ``-m slow``) check the
@@ -26,7 +26,7 @@ import pytest
 
 from cosim.alignment.sins_campaign import CampaignError, _seeds, block_seeds, run_campaign
 from cosim.alignment.sins_static import ARCMIN
-from cosim.estimators import anees_bounds
+from cosim.estimation import anees_bounds
 from cosim.reproduce import seed003
 from cosim.scenario import load_scenario
 
@@ -87,8 +87,8 @@ def test_campaign_seeds_follow_the_documented_mapping() -> None:
     assert list(block_seeds(scenario, 7, 1)[0]) == names  # the table has no seed
     with pytest.raises(CampaignError, match="runs"):
         run_campaign(seed003.STATIC, 0, 1)
-    # the same rule as `ins-cosim verify` (cosim.campaign), so both see the same runs
-    campaign = pytest.importorskip("cosim.campaign")
+    # the same rule as `ins-cosim verify` (cosim.verify.campaign), so both see the same runs
+    campaign = pytest.importorskip("cosim.verify.campaign")
     if hasattr(campaign, "run_seeds"):
         assert all(campaign.run_seeds(7, i, names) == five[i] for i in range(5))
 

@@ -36,7 +36,7 @@ from cosim.alignment.sins_static import (
 )
 from cosim.blocks import InProcessHost
 from cosim.errors import SimulationError
-from cosim.estimators import observability_rank, piecewise_observability_rank, van_loan
+from cosim.estimation import observability_rank, piecewise_observability_rank, van_loan
 from cosim.master import Connection, Master, MasterSettings, System
 from models.conventions import euler_to_dcm_3, rotvec_to_dcm_3
 from models.earth import OMEGA_IE, gravity

@@ -1,4 +1,4 @@
-"""SSP export (cosim/ssp.py) and its run in libcosim (run_libcosim_ssp).
+"""SSP export (cosim/interop/ssp.py) and its run in libcosim (run_libcosim_ssp).
 
 The archive must validate against the SSP 1.0 schemas (fmpy ships them) and, run by
 libcosim's own SSP loader, reproduce our master with Jacobi coupling to 1e-12.
@@ -16,8 +16,8 @@ import pytest
 from fmpy.ssp.ssd import read_ssd
 
 import cosim
-from cosim.libcosim_runner import LibcosimError, run_libcosim_ssp
-from cosim.ssp import SspError, export_ssp
+from cosim.interop.libcosim_runner import LibcosimError, run_libcosim_ssp
+from cosim.interop.ssp import SspError, export_ssp
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "scenarios" / "demo.toml"

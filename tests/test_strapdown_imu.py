@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from cosim.allan import allan_deviation, relative_error
+from cosim.estimation.allan import allan_deviation, relative_error
 from models.strapdown_imu import (
     DEG_PER_HOUR,
     DEG_PER_SQRT_HOUR,

@@ -35,7 +35,7 @@ from cosim.alignment.transfer import (
     propagate,
     reset_jacobian,
 )
-from cosim.estimators import van_loan
+from cosim.estimation import van_loan
 from cosim.master import Master
 from cosim.scenario import load_scenario
 from models.conventions import dcm_to_euler, dcm_to_rotvec, euler_to_dcm

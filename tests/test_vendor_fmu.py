@@ -19,8 +19,8 @@ from fmpy import simulate_fmu
 from fmpy.validation import validate_fmu
 
 import cosim
-from cosim.cbuild import build_c_fmu
-from cosim.interfaces import check_fmu
+from cosim.interop.cbuild import build_c_fmu
+from cosim.interop.interfaces import check_fmu
 
 ROOT = Path(__file__).resolve().parents[1]
 VENDOR = ROOT / "fmus" / "vendor_example"

@@ -142,7 +142,7 @@ def test_fmus_in_workers_give_the_in_process_metrics(cli, tmp_path, fmu_dir) -> 
 
 
 def test_ctrl_c_keeps_finished_runs_and_resume_completes(tmp_path: Path) -> None:
-    from cosim.campaign import run_campaign
+    from cosim.verify.campaign import run_campaign
 
     # 16 runs of 90 s simulated (about 0.2 s each) on 2 workers: a few seconds long.
     scenario = variant(tmp_path, **{'stop = "20 s"': 'stop = "90 s"', "runs = 20 ": "runs = 16 "})

@@ -99,7 +99,7 @@ only one is corrected with the changed drift, so it shares the inconsistency.
 6. Filters (``method``)
 -----------------------
 - 0 **EKF** on ``x`` (analytic Jacobian, Joseph update).
-- 1 **UPF**: :class:`~cosim.estimators.UnscentedParticleFilter`, a UKF per particle,
+- 1 **UPF**: :class:`~cosim.estimation.UnscentedParticleFilter`, a UKF per particle,
   ``n_particles`` (200) vectorised, systematic resampling, ``rng`` from ``seed``.
   The states are random constants (Q = 0), for which the exact "full" importance weight
   collapses (see the estimators' notes; sampling with roughening also failed here,
@@ -152,7 +152,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from cosim.estimators import (
+from cosim.estimation import (
     ExtendedKalmanFilter,
     KalmanFilter,
     MerweScaledSigmaPoints,

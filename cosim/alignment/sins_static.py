@@ -125,7 +125,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from cosim.estimators import KalmanFilter, van_loan
+from cosim.estimation import KalmanFilter, van_loan
 from models.block import Block, input_, output, parameter
 from models.conventions import euler_to_dcm_3, rotvec_to_dcm_3
 from models.earth import OMEGA_IE, gravity

@@ -105,13 +105,13 @@ exact for attitudes quartic in time (error ``h^4 |omega^(5)| / 5``, about 1e-8 r
 linear; the UKF is still used for it (same code path, exact for linear ``h``).
 
 Filter: two stages, both scaled UKFs (Merwe sigma points ``ukf_alpha``, ``ukf_beta``,
-``ukf_kappa``; heading-aware mean and residual, :func:`cosim.estimators.angle_mean_fn`
-and :func:`~cosim.estimators.angle_residual_fn` on ``phi_D``). Seed 001 augments the state
+``ukf_kappa``; heading-aware mean and residual, :func:`cosim.estimation.angle_mean_fn`
+and :func:`~cosim.estimation.angle_residual_fn` on ``phi_D``). Seed 001 augments the state
 with the noises; with additive noise the augmented and the plain UKF give the same first
 two moments, so we do not augment.
 
 * **Stage 1, acquisition** (``stage = 1``): a Gaussian-sum bank of ``acquire_hypotheses``
-  UKFs (:class:`cosim.estimators.UnscentedParticleFilter` with ``proposal="mean"``: each
+  UKFs (:class:`cosim.estimation.UnscentedParticleFilter` with ``proposal="mean"``: each
   particle is a UKF, weighted by its innovations' likelihood), whose prior headings are
   spread evenly over the circle with sigma ``p0_heading`` each (6 x 30 deg by default), so
   any initial heading error, up to 180 deg, is within about one sigma of a hypothesis.
@@ -183,7 +183,7 @@ from typing import ClassVar
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from cosim.estimators import (
+from cosim.estimation import (
     MerweScaledSigmaPoints,
     UnscentedKalmanFilter,
     UnscentedParticleFilter,
@@ -926,7 +926,7 @@ def covariance_analysis(
 
     The model (:func:`linear_error_model` without the transformation) is held constant
     over ``dt`` at the interval's midpoint and discretised exactly with
-    :func:`cosim.estimators.van_loan` (noise: accelerometer ``q_accel`` on ``dv``, gyro
+    :func:`cosim.estimation.van_loan` (noise: accelerometer ``q_accel`` on ``dv``, gyro
     ``q_gyro`` on ``phi``, flexure ``eta``). Updates use the Joseph form.
 
     Parameters

@@ -15,7 +15,7 @@ with the HRG triad and the pulse accelerometers; filter:
    densities of 1-8 ug/sqrt(Hz), truth and filter model alike (:func:`noise_sensitivity`):
    the paper gives no accelerometer noise and the convergence time depends on it.
 
-Campaign seeds (the same mapping as :mod:`cosim.campaign`)::
+Campaign seeds (the same mapping as :mod:`cosim.verify.campaign`)::
 
     child_i = SeedSequence(seed).spawn(runs)[i]      (= SeedSequence(seed, spawn_key=(i,)))
     gyro, accel, filter, truth seeds = child_i.generate_state(4, uint32) >> 1
@@ -49,7 +49,7 @@ from typing import Any
 import numpy as np
 
 from cosim.alignment.hrg_two_position import ARCMIN, DEG_H, METHODS
-from cosim.estimators import wrap_angle
+from cosim.estimation import wrap_angle
 from cosim.master import CouplingWarning, Master
 from cosim.scenario import load_scenario
 from cosim.units import conversion_factor

@@ -17,7 +17,7 @@ StrapdownImu, ShipMotion -> MasterIns; filter:
 5. the **linear covariance analysis** (:func:`cosim.alignment.transfer.covariance_analysis`),
    rigid lever arm and with flexure, against the issue's figures.
 
-Seeds (the mapping of :func:`cosim.campaign.run_seeds`, the seeds ``ins-cosim verify``
+Seeds (the mapping of :func:`cosim.verify.campaign.run_seeds`, the seeds ``ins-cosim verify``
 gives run ``i``)::
 
     state = SeedSequence(seed).spawn(runs)[i].generate_state(3, uint32)
@@ -53,10 +53,10 @@ from typing import Any
 import numpy as np
 
 from cosim.alignment.transfer import ARCMIN, DEG, DEG_PER_HOUR, G0, covariance_analysis
-from cosim.campaign import latin_hypercube_normal
-from cosim.campaign import run_seeds as campaign_run_seeds
 from cosim.master import Master
 from cosim.scenario import load_scenario
+from cosim.verify.campaign import latin_hypercube_normal
+from cosim.verify.campaign import run_seeds as campaign_run_seeds
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "transfer_alignment.toml"
 #: Blocks with a seed parameter, in file order (the campaign runner's order).
@@ -177,7 +177,7 @@ def sensor_draws(seed: int, runs: int) -> np.ndarray:
     """Stratified turn-on errors of the slave IMU for a campaign of ``runs`` runs.
 
     Columns: accelerometer bias x, y, z, gyro drift x, y, z (slave axes), standard
-    normal, from :func:`cosim.campaign.latin_hypercube_normal` (stream 0 of the campaign
+    normal, from :func:`cosim.verify.campaign.latin_hypercube_normal` (stream 0 of the campaign
     seed); the runner scales them by the IMU's ``accel_bias_sigma`` and
     ``gyro_bias_sigma``. Why: the level error is mostly the bias the motion cannot
     separate, so with independent draws a 30-run campaign's level RMS moves by +-13 %

@@ -38,7 +38,7 @@ from cosim.alignment.sins_static import (
     euler_error_jacobian,
     heading_limit,
 )
-from cosim.estimators import anees_bounds
+from cosim.estimation import anees_bounds
 from cosim.scenario import load_scenario
 from models.earth import OMEGA_IE, gravity
 from models.turntable import Turntable

@@ -53,7 +53,7 @@ from cosim.errors import FmuError, UnitError, UserError
 from cosim.units import conversion_factor
 
 #: Folder of the role specs shipped with ins-cosim.
-ROLE_DIR = Path(__file__).resolve().parents[1] / "fmus" / "interfaces"
+ROLE_DIR = Path(__file__).resolve().parents[2] / "fmus" / "interfaces"
 
 _CAUSALITIES = ("input", "output", "parameter")
 _TYPES = ("Real", "Integer", "Boolean", "String")

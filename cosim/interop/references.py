@@ -4,7 +4,7 @@ Every block of ``models/`` is run with its default parameters (``seed = 1234`` w
 it has a seed), at its ``default_step`` for ``min(200, default_stop / default_step)``
 steps, with each Real input held at its start value plus a small deterministic
 sinusoid (``1e-3 sin(0.7 (i+1) t + i)`` in the input's SI unit, i = input index).
-The same drive serves the FMU-equivalence test. ``python -m cosim.references``
+The same drive serves the FMU-equivalence test. ``python -m cosim.interop.references``
 rewrites the files after a deliberate change of a model; the test suite compares
 every model with its file (relative 1e-12), as modelica/Reference-FMUs does.
 """
@@ -20,7 +20,7 @@ import numpy as np
 from cosim.blocks import REAL, BlockHost, InProcessHost
 from cosim.results import RunResult
 
-REFERENCE_DIR = Path(__file__).resolve().parents[1] / "models" / "reference"
+REFERENCE_DIR = Path(__file__).resolve().parents[2] / "models" / "reference"
 SEED = 1234
 MAX_STEPS = 200
 

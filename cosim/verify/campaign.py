@@ -2,7 +2,7 @@
 
 A campaign runs one scenario ``runs`` times with seeds derived from one campaign seed,
 evaluates every requirement on every run (in the worker, on the full recording) and
-judges each requirement over the runs (:func:`cosim.requirements.judge`).
+judges each requirement over the runs (:func:`cosim.verify.requirements.judge`).
 
 Where runs go:
 
@@ -56,7 +56,8 @@ import numpy as np
 
 from cosim.errors import ScenarioError, SimulationError, UserError
 from cosim.master import Master
-from cosim.requirements import (
+from cosim.scenario import Scenario, load_scenario
+from cosim.verify.requirements import (
     Requirement,
     RunMetric,
     Verdict,
@@ -66,13 +67,12 @@ from cosim.requirements import (
     load_requirements,
     overall_exit_code,
 )
-from cosim.scenario import Scenario, load_scenario
 
 CAMPAIGN_KEYS = {"runs", "seed", "randomize", "history_points", "on_failure"}
 MANIFEST = "campaign.json"
 RUNS_DIR = "runs"
 METRICS_FILE = "metrics.csv"
-REPORT_FILES = ("report.html", "junit.xml", "report.json")  # written by cosim.report
+REPORT_FILES = ("report.html", "junit.xml", "report.json")  # written by cosim.verify.report
 FORMAT = "ins-cosim-campaign/1"
 _SEED_SHIFT = 1  # uint32 >> 1: seeds fit an FMI Integer (int32), 0 .. 2**31 - 1
 

@@ -32,8 +32,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from cosim.campaign import Campaign  # noqa: E402
-from cosim.requirements import (  # noqa: E402
+from cosim.verify.campaign import Campaign  # noqa: E402
+from cosim.verify.requirements import (  # noqa: E402
     SATISFIED,
     UNDECIDED,
     VIOLATED,

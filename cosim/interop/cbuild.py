@@ -15,7 +15,7 @@ test suite.
 
 Command line (for building the vendor example by hand)::
 
-    python -m cosim.cbuild fmus/vendor_example fmus/build/VendorImu.fmu
+    python -m cosim.interop.cbuild fmus/vendor_example fmus/build/VendorImu.fmu
 """
 
 from __future__ import annotations
@@ -168,7 +168,7 @@ def build_c_fmu(
 
 def _main(argv: Sequence[str]) -> int:
     if len(argv) != 2:
-        print("usage: python -m cosim.cbuild SOURCE_DIR OUT.fmu", file=sys.stderr)
+        print("usage: python -m cosim.interop.cbuild SOURCE_DIR OUT.fmu", file=sys.stderr)
         return 2
     try:
         path = build_c_fmu(argv[0], argv[1])

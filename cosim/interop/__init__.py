@@ -1,0 +1,1 @@
+"""Interoperability: role specs, check-fmu, SSP, libcosim, C builds, FMU packaging, references."""

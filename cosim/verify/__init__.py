@@ -1,0 +1,1 @@
+"""Verification: requirements, the campaign engine, reports and plots."""
