@@ -17,6 +17,7 @@ A pyinstrument profile of a 20 s in-process run is written to
 
 from __future__ import annotations
 
+import dataclasses
 import time
 from collections import Counter
 from typing import Any
@@ -26,6 +27,7 @@ import numpy as np
 import cosim
 from benchmarks.monolithic import CHAIN_BLOCKS, CHAIN_SCENARIO, chain_parameters, simulate
 from benchmarks.timing import ROOT, fmu_dir, interleaved_best, load_note
+from cosim.scenario import build_master
 
 REPEATS = 2
 PROFILE_STOP = 20.0
@@ -40,8 +42,7 @@ class _Chain:
         if fmus is not None:
             sc.use_fmus(fmus)
         start = time.perf_counter()
-        system, meta = sc.build()
-        self.master = cosim.Master(system, sc.settings, meta)
+        self.master = build_master(sc)
         self.build_time = time.perf_counter() - start
         self.result: cosim.RunResult | None = None
         self._ran = False
@@ -87,7 +88,7 @@ def profile_breakdown(stop: float = PROFILE_STOP) -> str:
     except ImportError:
         return "no profile (pyinstrument is not installed: pip install -e '.[test]')"
     chain = _Chain()
-    chain.master.settings.stop = stop
+    chain.master.settings = dataclasses.replace(chain.master.settings, stop=stop)
     profiler = Profiler(interval=0.0005)
     profiler.start()
     try:

@@ -23,6 +23,7 @@ import numpy as np
 import cosim
 from benchmarks.monolithic import CHAIN_BLOCKS, CHAIN_SCENARIO
 from benchmarks.timing import fmu_dir, load_note
+from cosim.scenario import build_master
 
 #: Simulated time of the long runs [s] (libcosim: about 0.9 ms per step on an idle machine,
 #: up to 13 ms when other processes hold the cores).
@@ -32,8 +33,7 @@ LONG = 40.0
 def _scenario(fmus: Path, stop: float) -> cosim.Scenario:
     sc = cosim.load_scenario(CHAIN_SCENARIO)
     sc.use_fmus(fmus)
-    sc.settings.coupling = "jacobi"
-    sc.settings.stop = stop
+    sc.settings = sc.master_settings(coupling="jacobi", stop=stop)
     return sc
 
 
@@ -41,8 +41,7 @@ def _ours(fmus: Path, stop: float) -> tuple[float, cosim.RunResult]:
     """Wall time of one whole run by our master (load FMUs, initialise, step, record)."""
     start = time.perf_counter()
     sc = _scenario(fmus, stop)
-    system, meta = sc.build()
-    master = cosim.Master(system, sc.settings, meta)
+    master = build_master(sc)
     try:
         result = master.run()
     finally:

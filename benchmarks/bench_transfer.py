@@ -15,6 +15,7 @@ from typing import Any
 
 import cosim
 from benchmarks.timing import ROOT, interleaved_best, load_note
+from cosim.scenario import build_master
 
 SCENARIO = ROOT / "scenarios" / "transfer_alignment.toml"
 MODEL = "TransferAlignment"
@@ -32,8 +33,7 @@ def _without(sc: cosim.Scenario, block: str) -> cosim.Scenario:
 
 
 def _runner(sc: cosim.Scenario) -> Any:
-    system, meta = sc.build()
-    master = cosim.Master(system, sc.settings, meta)
+    master = build_master(sc)
     state = {"ran": False}
 
     def run() -> None:

@@ -15,7 +15,7 @@ from pathlib import Path
 from cosim.errors import FmuError, ScenarioError, SimulationError, UnitError, UserError
 from cosim.master import Connection, Master, MasterSettings, System
 from cosim.results import RunResult
-from cosim.scenario import Scenario, load_scenario
+from cosim.scenario import Scenario, build_master, load_scenario
 
 __all__ = [
     "Connection",
@@ -29,6 +29,7 @@ __all__ = [
     "System",
     "UnitError",
     "UserError",
+    "build_master",
     "load_scenario",
     "run",
 ]
@@ -57,15 +58,10 @@ def run(scenario: Scenario | str | Path, **overrides: object) -> RunResult:
         When a block fails or outputs a non-finite value; ``error.result`` keeps what
         was recorded up to then.
     """
-    if not isinstance(scenario, Scenario):
-        scenario = load_scenario(scenario)
-    settings = scenario.settings
-    for key, value in overrides.items():
-        if not hasattr(settings, key):
-            raise TypeError(f"run() got an unexpected override '{key}'")
-        setattr(settings, key, value)
-    system, metadata = scenario.build()
-    master = Master(system, settings, metadata)
+    try:
+        master = build_master(scenario, **overrides)
+    except TypeError as exc:
+        raise TypeError(f"run() got an unexpected override: {exc}") from None
     try:
         return master.run()
     finally:

@@ -69,21 +69,16 @@ def main() -> None:
 @click.option("--plot/--no-plot", default=True, show_default=True, help="Write results.png.")
 def run(scenario: Path, out: Path, fmu_dir: Path | None, stop: str | None, plot: bool) -> None:
     """Run SCENARIO once and write its results to --out."""
-    from cosim import Master
-    from cosim.scenario import _seconds, load_scenario
+    from cosim.scenario import build_master, load_scenario
 
     try:
         sc = load_scenario(scenario)
-        if fmu_dir is not None:
-            sc.use_fmus(fmu_dir)
-        if stop is not None:
-            sc.settings.stop = _seconds(stop, str(scenario), "--stop")
-        system, meta = sc.build()
-        master = Master(system, sc.settings, meta)
+        master = build_master(sc, fmu_dir=fmu_dir, stop=stop)
+        system = master.system
         n_blocks = len(system.blocks)
         click.echo(
-            f"running '{sc.name}': {n_blocks} blocks, {sc.settings.n_steps} steps of "
-            f"{sc.settings.step:g} s ({sc.settings.coupling})"
+            f"running '{sc.name}': {n_blocks} blocks, {master.settings.n_steps} steps of "
+            f"{master.settings.step:g} s ({master.settings.coupling})"
         )
         try:
             result = master.run()
@@ -116,25 +111,21 @@ def run(scenario: Path, out: Path, fmu_dir: Path | None, stop: str | None, plot:
 )
 def check(scenario: Path, fmu_dir: Path | None) -> None:
     """Validate SCENARIO (blocks, parameters, units, connections) without running it."""
-    from cosim.master import Master
-    from cosim.scenario import load_scenario
+    from cosim.scenario import build_master, load_scenario
 
     try:
         sc = load_scenario(scenario)
-        if fmu_dir is not None:
-            sc.use_fmus(fmu_dir)
-        system, meta = sc.build()
+        master = build_master(sc, fmu_dir=fmu_dir)
+        system = master.system
         try:
-            master = Master(system, sc.settings, meta)
             master.warn_loops()
         finally:
-            for host in system.blocks.values():
-                host.terminate()
+            master.terminate()
     except UserError as exc:
         _fail(exc)
     click.echo(
         f"{scenario}: OK - {len(system.blocks)} blocks, {len(system.connections)} scalar "
-        f"connections, {sc.settings.n_steps} steps; stepping order: {' -> '.join(master.order)}"
+        f"connections, {master.settings.n_steps} steps; stepping order: {' -> '.join(master.order)}"
     )
 
 

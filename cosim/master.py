@@ -68,22 +68,29 @@ class Connection:
         return f"{self.src_block}.{self.src_var} -> {self.dst_block}.{self.dst_var}"
 
 
-@dataclass
+@dataclass(frozen=True)
 class MasterSettings:
-    """Master settings.
+    """Master settings, checked once when made; frozen (an override makes a new object).
 
     Attributes
     ----------
     step : float
-        Macro step h [s].
+        Macro step h [s], > 0.
     stop : float
-        Stop time [s]; ``stop - start`` must be a whole number of steps.
+        Stop time [s]; ``stop - start`` must be a whole positive number of steps.
     start : float
         Start time t0 [s].
     coupling : str
         ``"gauss-seidel"`` or ``"jacobi"``.
     record_every : int
-        Record every k-th macro step (t0 is always recorded).
+        Record every k-th macro step (t0 is always recorded), >= 1.
+    n_steps : int
+        Number of macro steps, derived from the above (not an argument).
+
+    Raises
+    ------
+    ScenarioError
+        With the ``master.*`` key of the inconsistent setting.
     """
 
     step: float
@@ -91,12 +98,27 @@ class MasterSettings:
     start: float = 0.0
     coupling: str = GAUSS_SEIDEL
     record_every: int = 1
+    n_steps: int = field(init=False, repr=False, compare=False)
 
-    @property
-    def n_steps(self) -> int:
-        """Number of macro steps."""
+    def __post_init__(self) -> None:
+        if not self.step > 0:
+            raise ScenarioError(f"master.step must be > 0 s, got {self.step}", key="master.step")
         n = (self.stop - self.start) / self.step
-        return int(round(n))
+        if n < 1 or not math.isclose(n, round(n), rel_tol=0, abs_tol=1e-9 * max(1.0, n)):
+            raise ScenarioError(
+                f"stop - start = {self.stop - self.start} s is not a whole positive number of "
+                f"steps of {self.step} s; change master.stop or master.step",
+                key="master.stop",
+            )
+        if self.coupling not in (GAUSS_SEIDEL, JACOBI):
+            raise ScenarioError(
+                f"expected 'gauss-seidel' or 'jacobi', got '{self.coupling}'",
+                key="master.coupling",
+            )
+        every = self.record_every
+        if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+            raise ScenarioError(f"expected a positive integer, got {every!r}", key="output.every")
+        object.__setattr__(self, "n_steps", int(round(n)))
 
 
 @dataclass
@@ -243,19 +265,6 @@ class Master:
         self.settings = settings
         self.metadata = dict(metadata or {})
         s = settings
-        if not s.step > 0:
-            raise ScenarioError(f"master.step must be > 0 s, got {s.step}", key="master.step")
-        n = (s.stop - s.start) / s.step
-        if n < 1 or not math.isclose(n, round(n), rel_tol=0, abs_tol=1e-9 * max(1.0, n)):
-            raise ScenarioError(
-                f"stop - start = {s.stop - s.start} s is not a whole positive number of "
-                f"steps of {s.step} s; change master.stop or master.step",
-                key="master.stop",
-            )
-        if s.coupling not in (GAUSS_SEIDEL, JACOBI):
-            raise ScenarioError(
-                f"expected 'gauss-seidel' or 'jacobi', got '{s.coupling}'", key="master.coupling"
-            )
         for name, k in system.rates.items():
             if not isinstance(k, int) or k < 1 or s.n_steps % k:
                 raise ScenarioError(

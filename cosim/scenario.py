@@ -31,6 +31,7 @@ Loading checks everything that can be checked without running: every problem is 
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import hashlib
 import importlib
@@ -42,12 +43,13 @@ from typing import Any
 
 from cosim.blocks import REAL, BlockHost, FmuHost, InProcessHost, Variable
 from cosim.errors import FmuError, ScenarioError, UnitError
-from cosim.master import GAUSS_SEIDEL, JACOBI, Connection, MasterSettings, System
+from cosim.master import GAUSS_SEIDEL, Connection, Master, MasterSettings, System
 from cosim.units import conversion_factor, resolve_unit, to_unit
 
 TOP_KEYS = {"scenario", "master", "blocks", "connections", "output", "requirements", "campaign"}
 BLOCK_KEYS = {"model", "fmu", "class", "rate", "parameters", "description", "rename"}
 MASTER_KEYS = {"step", "stop", "start", "coupling"}
+SETTING_KEYS = {"step", "stop", "start", "coupling", "record_every"}
 OUTPUT_KEYS = {"variables", "every"}
 _LINK = re.compile(r"^\s*(\w+)\.([\w\[\]]+)\s*->\s*(\w+)\.([\w\[\]]+)\s*$")
 _NAME = re.compile(r"^[A-Za-z_]\w*$")
@@ -131,6 +133,44 @@ class Scenario:
             To be raised by the caller.
         """
         return ScenarioError(message, file=str(self.path), key=key)
+
+    def master_settings(self, **overrides: Any) -> MasterSettings:
+        """The scenario's master settings with some of them replaced.
+
+        Parameters
+        ----------
+        **overrides
+            ``step``, ``stop``, ``start`` (seconds, or strings with a time unit),
+            ``coupling``, ``record_every``; a value of None keeps the scenario's.
+
+        Returns
+        -------
+        MasterSettings
+            A new, checked object; :attr:`settings` is not changed.
+
+        Raises
+        ------
+        ScenarioError
+            An override that makes the settings inconsistent (e.g. a stop time that is not
+            a whole number of steps).
+        TypeError
+            An unknown override name (a programming error, not a user's).
+        """
+        changes: dict[str, Any] = {}
+        for key, value in overrides.items():
+            if key not in SETTING_KEYS:
+                raise TypeError(f"unknown master setting '{key}' (known: {sorted(SETTING_KEYS)})")
+            if value is None:
+                continue
+            if key in ("step", "stop", "start"):
+                value = parse_seconds(value, str(self.path), f"master.{key}")
+            changes[key] = value
+        if not changes:
+            return self.settings
+        try:
+            return dataclasses.replace(self.settings, **changes)
+        except ScenarioError as exc:
+            raise self.error(exc.message, key=exc.key) from None
 
     def use_fmus(self, fmu_dir: str | Path) -> None:
         """Run every built-in model from ``<fmu_dir>/<Model>.fmu`` instead of in-process.
@@ -492,7 +532,28 @@ def _check_keys(table: dict[str, Any], allowed: set[str], where: str, file: str)
             )
 
 
-def _seconds(value: Any, file: str, key: str) -> float:
+def parse_seconds(value: Any, file: str, key: str) -> float:
+    """A time from a scenario value or a command-line option, in seconds.
+
+    Parameters
+    ----------
+    value : float, int or str
+        Seconds, or a string with a time unit (``"10 ms"``, ``"2 min"``).
+    file : str
+        Where the value comes from (for the message).
+    key : str
+        The key or option that holds it (for the message).
+
+    Returns
+    -------
+    float
+        The time [s].
+
+    Raises
+    ------
+    ScenarioError
+        Not a time.
+    """
     try:
         v = to_unit(value, "s")
     except UnitError as exc:
@@ -551,27 +612,18 @@ def load_scenario(path: str | Path) -> Scenario:
             raise ScenarioError(
                 f"missing master.{req} (a time, e.g. '10 ms')", file=f, key=f"master.{req}"
             )
-    coupling = str(master.get("coupling", GAUSS_SEIDEL)).lower().replace("_", "-")
-    if coupling not in (GAUSS_SEIDEL, JACOBI):
-        raise ScenarioError(
-            f"expected 'gauss-seidel' or 'jacobi', got {master.get('coupling')!r}",
-            file=f,
-            key="master.coupling",
-        )
     output = doc.get("output", {})
     _check_keys(output, OUTPUT_KEYS, "output", f)
-    every = output.get("every", 1)
-    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
-        raise ScenarioError(
-            f"expected a positive integer, got {every!r}", file=f, key="output.every"
+    try:
+        settings = MasterSettings(
+            step=parse_seconds(master["step"], f, "master.step"),
+            stop=parse_seconds(master["stop"], f, "master.stop"),
+            start=parse_seconds(master.get("start", 0.0), f, "master.start"),
+            coupling=str(master.get("coupling", GAUSS_SEIDEL)).lower().replace("_", "-"),
+            record_every=output.get("every", 1),
         )
-    settings = MasterSettings(
-        step=_seconds(master["step"], f, "master.step"),
-        stop=_seconds(master["stop"], f, "master.stop"),
-        start=_seconds(master.get("start", 0.0), f, "master.start"),
-        coupling=coupling,
-        record_every=every,
-    )
+    except ScenarioError as exc:
+        raise ScenarioError(exc.message, file=f, key=exc.key) from None
     blocks_raw = doc.get("blocks")
     if not isinstance(blocks_raw, dict) or not blocks_raw:
         raise ScenarioError(
@@ -641,3 +693,45 @@ def load_scenario(path: str | Path) -> Scenario:
         outputs=outputs,
         raw=doc,
     )
+
+
+def build_master(
+    scenario: Scenario | str | Path, *, fmu_dir: str | Path | None = None, **overrides: Any
+) -> Master:
+    """Instantiate a scenario's blocks and the master that steps them: the one place a
+    :class:`~cosim.master.Master` is made from a scenario.
+
+    Parameters
+    ----------
+    scenario : Scenario, str or Path
+        A loaded scenario or the path of its TOML file.
+    fmu_dir : str or Path, optional
+        Run built-in models from ``<fmu_dir>/<Model>.fmu`` (see :meth:`Scenario.use_fmus`).
+    **overrides
+        Master settings to replace (:meth:`Scenario.master_settings`).
+
+    Returns
+    -------
+    Master
+        Ready to :meth:`~cosim.master.Master.run`; ``master.system`` holds the hosts and
+        ``master.metadata`` the provenance. The caller terminates it.
+
+    Raises
+    ------
+    ScenarioError, FmuError
+        Before anything runs, with the file and key of the problem.
+    """
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    if fmu_dir is not None:
+        scenario.use_fmus(fmu_dir)
+    settings = scenario.master_settings(**overrides)
+    system, metadata = scenario.build()
+    try:
+        return Master(system, settings, metadata)
+    except BaseException as exc:
+        for host in system.blocks.values():
+            host.terminate()
+        if isinstance(exc, ScenarioError) and exc.file is None:
+            raise scenario.error(exc.message, key=exc.key) from None
+        raise

@@ -116,11 +116,35 @@ def cross(a: ArrayLike, b: ArrayLike) -> np.ndarray:
     """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
+    if a.shape == (3,) and b.shape == (3,):  # one pair: scalar arithmetic beats array calls
+        a0, a1, a2 = a.tolist()
+        b0, b1, b2 = b.tolist()
+        return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
     return vec3(
         a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1],
         a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2],
         a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0],
     )
+
+
+def wrap_angle(a: ArrayLike) -> np.ndarray | float:
+    """Angles wrapped to the interval (-pi, pi] [rad]: the one wrap of the code base.
+
+    Parameters
+    ----------
+    a : float or array_like, any shape
+        Angles [rad].
+
+    Returns
+    -------
+    float or ndarray, same shape as ``a``
+        ``a`` plus a multiple of ``2 pi``, in (-pi, pi] [rad]; a Python float for a
+        Python float (the scalar path is cheaper), an ndarray otherwise.
+    """
+    if isinstance(a, float):
+        return math.pi - (math.pi - a) % (2.0 * math.pi)
+    a = np.asarray(a, dtype=float)
+    return np.pi - np.mod(np.pi - a, 2.0 * np.pi)
 
 
 def skew(v: ArrayLike) -> np.ndarray:

@@ -30,6 +30,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from models.block import output
+from models.constants import E2, GAMMA_E, K_SOMIGLIANA, M_RATIO, OMEGA_IE, A, F
 from models.conventions import (
     cross,
     euler_accel_to_body_accel,
@@ -37,27 +38,6 @@ from models.conventions import (
     euler_to_dcm,
     vec3,
 )
-
-#: Semi-major axis [m].
-A = 6378137.0
-#: Flattening [-].
-F = 1.0 / 298.257223563
-#: Semi-minor axis [m].
-B = A * (1.0 - F)
-#: First eccentricity squared [-].
-E2 = F * (2.0 - F)
-#: Earth's gravitational constant GM (with atmosphere) [m^3/s^2].
-GM = 3.986004418e14
-#: Earth rotation rate [rad/s].
-OMEGA_IE = 7.292115e-5
-#: Normal gravity at the equator [m/s^2].
-GAMMA_E = 9.7803253359
-#: Normal gravity at the poles [m/s^2].
-GAMMA_P = 9.8321849378
-#: Somigliana's constant k = b gamma_p / (a gamma_e) - 1 [-].
-K_SOMIGLIANA = B * GAMMA_P / (A * GAMMA_E) - 1.0
-#: m = Omega^2 a^2 b / GM [-].
-M_RATIO = OMEGA_IE**2 * A**2 * B / GM
 
 
 def R_M(lat: ArrayLike) -> np.ndarray:

@@ -80,8 +80,8 @@ import math
 import numpy as np
 
 from models.block import Block, input_, output, parameter
+from models.constants import OMEGA_IE
 from models.conventions import rot_z, rotvec_to_dcm, substeps
-from models.earth import OMEGA_IE
 
 _ARCMIN = math.pi / 180.0 / 60.0
 _DEG = math.pi / 180.0

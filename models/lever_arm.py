@@ -63,6 +63,7 @@ import math
 import numpy as np
 
 from models.block import Block, input_, output, parameter
+from models.constants import OMEGA_IE
 from models.conventions import (
     StepPath,
     cross,
@@ -76,7 +77,6 @@ from models.conventions import (
     step_quadratic,
     substeps,
 )
-from models.earth import OMEGA_IE
 
 _DEG = math.pi / 180.0
 

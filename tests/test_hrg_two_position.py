@@ -33,8 +33,8 @@ from cosim.alignment.hrg_two_position import (
     tilt_jacobian,
 )
 from cosim.estimation import wrap_angle
+from models.constants import OMEGA_IE
 from models.conventions import rot_z
-from models.earth import OMEGA_IE
 from models.hrg_platform import HrgPlatform
 
 LAT = math.radians(45.0)

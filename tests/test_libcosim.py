@@ -14,6 +14,7 @@ import pytest
 
 import cosim
 from cosim.interop.libcosim_runner import LibcosimError, run_libcosim
+from cosim.scenario import build_master
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -21,10 +22,9 @@ ROOT = Path(__file__).resolve().parents[1]
 def test_demo_chain_matches_libcosim_under_jacobi(fmu_dir: Path) -> None:
     sc = cosim.load_scenario(ROOT / "scenarios" / "demo.toml")
     sc.use_fmus(fmu_dir)
-    sc.settings.coupling = "jacobi"
-    sc.settings.stop = 5.0
-    system, meta = sc.build()
-    ours = cosim.Master(system, sc.settings, meta)
+    sc.settings = sc.master_settings(coupling="jacobi", stop=5.0)
+    ours = build_master(sc)
+    system = ours.system
     try:
         mine = ours.run()
     finally:
@@ -45,7 +45,7 @@ def test_demo_chain_matches_libcosim_under_jacobi(fmu_dir: Path) -> None:
         diff = np.max(np.abs(theirs[name] - mine.data[name]))
         assert diff <= 1e-12, f"{name}: {diff}"
     # the comparison can fail: under Gauss-Seidel the sensor sees x one step earlier
-    sc.settings.coupling = "gauss-seidel"
+    sc.settings = sc.master_settings(coupling="gauss-seidel")
     gs = cosim.run(sc)
     assert np.max(np.abs(gs["sensor.y"] - theirs["sensor.y"])) > 1e-9
 

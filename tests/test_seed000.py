@@ -32,7 +32,7 @@ from cosim.reproduce.seed000 import (
     reproduce,
     run_seeds,
 )
-from models.earth import OMEGA_IE
+from models.constants import OMEGA_IE
 
 FIXED_SEED = 2024  # the campaign seed of the README's reproduction; run 0 is "the fixed seed"
 

@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from models import constants, earth
 from models import conventions as cv
-from models import earth
 from models.ship_motion import ShipMotion
 
 ARCSEC = math.pi / 180.0 / 3600.0
@@ -86,7 +86,7 @@ class Strapdown:
     def _env(self, v, lat, h):
         rm = float(earth.R_M(lat)) + h
         rn = float(earth.R_N(lat)) + h
-        w_ie = (earth.OMEGA_IE * math.cos(lat), 0.0, -earth.OMEGA_IE * math.sin(lat))
+        w_ie = (constants.OMEGA_IE * math.cos(lat), 0.0, -constants.OMEGA_IE * math.sin(lat))
         w_en = (v[1] / rn, -v[0] / rm, -v[1] * math.tan(lat) / rn)
         return w_ie, w_en, float(earth.gravity(lat, h)), rm, rn
 
@@ -245,5 +245,5 @@ def test_strapdown_consistency_600s(heave: bool) -> None:
     assert np.max(np.abs(dvel)) < 1e-3
     assert np.max(np.abs(att)) < 0.01 * ARCSEC
     assert np.max(np.abs(dvel)) < 2e-5
-    assert np.max(np.abs(dpos[:, 0])) * earth.A < 1e-3
+    assert np.max(np.abs(dpos[:, 0])) * constants.A < 1e-3
     assert np.max(np.abs(dpos[:, 1])) < 1e-3

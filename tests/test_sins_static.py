@@ -38,8 +38,9 @@ from cosim.blocks import InProcessHost
 from cosim.errors import SimulationError
 from cosim.estimation import observability_rank, piecewise_observability_rank, van_loan
 from cosim.master import Connection, Master, MasterSettings, System
+from models.constants import OMEGA_IE
 from models.conventions import euler_to_dcm_3, rotvec_to_dcm_3
-from models.earth import OMEGA_IE, gravity
+from models.earth import gravity
 from models.stationary_base import StationaryBase
 from models.strapdown_imu import StrapdownImu
 from models.turntable import Turntable

@@ -30,8 +30,8 @@ def sha256(data: bytes) -> str:
 def run_ours_jacobi(scenario: Path, fmu_dir: Path, stop: float) -> cosim.RunResult:
     sc = cosim.load_scenario(scenario)
     sc.use_fmus(fmu_dir)
-    sc.settings.coupling = "jacobi"
-    sc.settings.stop = stop
+    sc.settings = sc.master_settings(coupling="jacobi")
+    sc.settings = sc.master_settings(stop=stop)
     return cosim.run(sc)
 
 
@@ -90,7 +90,7 @@ def test_exported_demo_in_libcosim_equals_our_jacobi_master(demo_ssp, fmu_dir: P
         assert diff <= 1e-12, f"{name}: {diff}"
     # the comparison can fail: Gauss-Seidel (the demo's own coupling) differs
     gs = cosim.load_scenario(DEMO)
-    gs.settings.stop = 5.0
+    gs.settings = gs.master_settings(stop=5.0)
     assert np.max(np.abs(cosim.run(gs)["sensor.y"] - theirs["sensor.y"])) > 1e-9
 
 

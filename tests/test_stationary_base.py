@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from test_ship_motion import ARCSEC, Strapdown
 
+from models import constants, earth
 from models import conventions as cv
-from models import earth
 from models.stationary_base import StationaryBase
 
 DEG = math.pi / 180.0
@@ -31,7 +31,7 @@ def test_perfect_readings(lat_deg: float) -> None:
     m = make(rpy0=tuple(rpy), lat0=lat, h0=120.0)
     c_b_n = cv.euler_to_dcm(rpy)
     f_ref = c_b_n.T @ np.array([0.0, 0.0, -earth.gravity(lat, 120.0)])
-    w_ref = c_b_n.T @ (earth.OMEGA_IE * np.array([math.cos(lat), 0.0, -math.sin(lat)]))
+    w_ref = c_b_n.T @ (constants.OMEGA_IE * np.array([math.cos(lat), 0.0, -math.sin(lat)]))
     h = 0.01
     for k in range(5):
         m.do_step(k * h, h)

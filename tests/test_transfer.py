@@ -36,10 +36,9 @@ from cosim.alignment.transfer import (
     reset_jacobian,
 )
 from cosim.estimation import van_loan
-from cosim.master import Master
-from cosim.scenario import load_scenario
+from cosim.scenario import build_master, load_scenario
+from models.constants import OMEGA_IE
 from models.conventions import dcm_to_euler, dcm_to_rotvec, euler_to_dcm
-from models.earth import OMEGA_IE
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "transfer_alignment.toml"
 LAT = 30.0 * DEG
@@ -122,8 +121,7 @@ def test_error_model_matches_the_numerical_jacobian_of_the_nonlinear_model(flexu
 def truth_record() -> dict[str, np.ndarray]:
     """60 s of the scenario's truth with a perfect slave IMU and a 30' flexure (visible)."""
     sc = load_scenario(SCENARIO)
-    sc.settings.stop = 60.0
-    sc.settings.record_every = 1
+    sc.settings = sc.master_settings(stop=60.0, record_every=1)
     sc.blocks["imu"].parameters.update(
         gyro_bias_sigma=0.0, gyro_arw=0.0, accel_bias_sigma=0.0, accel_vrw=0.0
     )
@@ -136,8 +134,7 @@ def truth_record() -> dict[str, np.ndarray]:
         "imu.dtheta_meas_b",
         "imu.dv_meas_b",
     ]
-    system, meta = sc.build()
-    master = Master(system, sc.settings, meta)
+    master = build_master(sc)
     try:
         r = master.run()
     finally:
@@ -300,12 +297,11 @@ def test_block_rejects_bad_configuration() -> None:
 
 def _run(overrides: dict[str, dict], stop: float = 120.0) -> dict[str, np.ndarray]:
     sc = load_scenario(SCENARIO)
-    sc.settings.stop = stop
+    sc.settings = sc.master_settings(stop=stop)
     for block, params in overrides.items():
         sc.blocks[block].parameters.update(params)
     sc.outputs = ["align.rpy_err", "align.rpy_sigma", "align.stage", "align.rel_rpy", "align.nis"]
-    system, meta = sc.build()
-    master = Master(system, sc.settings, meta)
+    master = build_master(sc)
     try:
         r = master.run()
     finally:

@@ -21,6 +21,7 @@ from fmpy.validation import validate_fmu
 import cosim
 from cosim.interop.cbuild import build_c_fmu
 from cosim.interop.interfaces import check_fmu
+from cosim.scenario import build_master
 
 ROOT = Path(__file__).resolve().parents[1]
 VENDOR = ROOT / "fmus" / "vendor_example"
@@ -244,8 +245,8 @@ def test_seed_reset_and_variable_steps(tmp_path: Path, vendor_imu_fmu: Path) -> 
         'gyro_arw = "0.05 deg/sqrt(h)", accel_vrw = "30 ug/sqrt(Hz)", seed = 9',
     )
     sc = cosim.load_scenario(path)
-    system, meta = sc.build()
-    master = cosim.Master(system, sc.settings, meta)
+    master = build_master(sc)
+    system = master.system
     try:
         first = master.run()
         master.reset()  # fmi2Reset: the generator restarts from the seed

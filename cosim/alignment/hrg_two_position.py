@@ -162,7 +162,7 @@ from cosim.estimation import (
     wrap_angle,
 )
 from models.block import Block, input_, output, parameter
-from models.earth import OMEGA_IE
+from models.constants import OMEGA_IE
 
 __all__ = [
     "AlignmentSequenceError",

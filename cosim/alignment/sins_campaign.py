@@ -143,9 +143,9 @@ def _prepare(
             )
         scenario.blocks[block].parameters.update(params)
     if stop is not None:
-        scenario.settings.stop = float(stop)
+        scenario.settings = scenario.master_settings(stop=float(stop))
     if record_every is not None:
-        scenario.settings.record_every = int(record_every)
+        scenario.settings = scenario.master_settings(record_every=int(record_every))
     if columns is not None:
         scenario.outputs = list(columns)
     return scenario

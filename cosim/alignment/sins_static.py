@@ -127,8 +127,9 @@ from numpy.typing import ArrayLike, NDArray
 
 from cosim.estimation import KalmanFilter, van_loan
 from models.block import Block, input_, output, parameter
+from models.constants import OMEGA_IE
 from models.conventions import euler_to_dcm_3, rotvec_to_dcm_3
-from models.earth import OMEGA_IE, gravity
+from models.earth import gravity
 
 FloatArray = NDArray[np.float64]
 

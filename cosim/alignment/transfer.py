@@ -192,6 +192,7 @@ from cosim.estimation import (
     van_loan,
 )
 from models.block import Block, input_, output, parameter
+from models.constants import OMEGA_IE
 from models.conventions import (
     dcm_to_euler,
     dcm_to_rotvec,
@@ -200,7 +201,7 @@ from models.conventions import (
     rotvec_to_dcm_3,
     skew,
 )
-from models.earth import OMEGA_IE, R_M, R_N, euler_motion_truth, gravity
+from models.earth import R_M, R_N, euler_motion_truth, gravity
 from models.lever_arm import r0_matrix
 
 FloatArray = NDArray[np.float64]

@@ -53,7 +53,7 @@ from cosim.estimation import wrap_angle
 from cosim.master import CouplingWarning, Master
 from cosim.scenario import load_scenario
 from cosim.units import conversion_factor
-from models.earth import OMEGA_IE
+from models.constants import OMEGA_IE
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "hrg_two_position.toml"
 #: Convergence band of the apparent azimuth (acceptance: 4') [arcmin].
@@ -187,7 +187,7 @@ class Seed000Runner:
     ) -> None:
         sc = load_scenario(scenario)
         if stop is not None:
-            sc.settings.stop = float(stop)
+            sc.settings = sc.master_settings(stop=float(stop))
         self.system, meta = sc.build()
         self.master = Master(self.system, sc.settings, meta)
         self.base = {k: dict(v) for k, v in self.system.parameters.items()}

@@ -320,7 +320,7 @@ class Runner:
     def __init__(self, scenario: Path = SCENARIO, stop: float | None = None) -> None:
         sc = load_scenario(scenario)
         if stop is not None:
-            sc.settings.stop = float(stop)
+            sc.settings = sc.master_settings(stop=float(stop))
         sc.outputs = [c for c in COLUMNS]
         self.system, metadata = sc.build()
         self.master = Master(self.system, sc.settings, metadata)

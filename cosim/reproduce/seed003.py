@@ -40,7 +40,8 @@ from cosim.alignment.sins_static import (
 )
 from cosim.estimation import anees_bounds
 from cosim.scenario import load_scenario
-from models.earth import OMEGA_IE, gravity
+from models.constants import OMEGA_IE
+from models.earth import gravity
 from models.turntable import Turntable
 
 ROOT = Path(__file__).resolve().parents[2]
