@@ -61,6 +61,7 @@ __all__ = [
     "angle_mean_fn",
     "angle_residual",
     "angle_residual_fn",
+    "joseph_update",
     "nees",
     "nis",
     "observability_matrix",
@@ -745,12 +746,48 @@ def angle_mean_fn(angle_indices: Sequence[int]) -> MeanFn:
 # ----------------------------------------------------------------------------------------
 # Linear Kalman filter
 # ----------------------------------------------------------------------------------------
-def _kalman_update(
+def joseph_update(
     x: FloatArray, P: FloatArray, y: FloatArray, H: FloatArray, R: FloatArray
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray, float]:
-    """Linear(ised) measurement update with the Joseph form.
+    """Linear(ised) Kalman measurement update, covariance in the Joseph form.
 
-    Returns ``x_post, P_post, K, S, log_likelihood``.
+    ``S = H P H^T + R``, ``K = P H^T S^-1``, ``x_post = x + K y`` and
+    ``P_post = (I - K H) P (I - K H)^T + K R K^T``; ``S`` and ``P_post`` are
+    symmetrised as ``(M + M^T) / 2``. This is the update every filter of the
+    package uses; covariance analyses call it with ``y = 0`` to propagate ``P``
+    alone. The inputs are used as given (no shape checks, no copies): pass
+    float arrays of the shapes below.
+
+    Parameters
+    ----------
+    x : ndarray, shape (n,)
+        Prior state estimate.
+    P : ndarray, shape (n, n)
+        Prior covariance (symmetric positive semi-definite).
+    y : ndarray, shape (m,)
+        Innovation ``z - h(x)`` (a residual in the measurement's units).
+    H : ndarray, shape (m, n)
+        Measurement matrix (or Jacobian at the prior).
+    R : ndarray, shape (m, m)
+        Measurement noise covariance.
+
+    Returns
+    -------
+    x_post : ndarray, shape (n,)
+        Posterior state estimate.
+    P_post : ndarray, shape (n, n)
+        Posterior covariance (exactly symmetric).
+    K : ndarray, shape (n, m)
+        Kalman gain.
+    S : ndarray, shape (m, m)
+        Innovation covariance (exactly symmetric).
+    log_likelihood : float
+        ``log N(y; 0, S)`` of the innovation.
+
+    Raises
+    ------
+    CovarianceError
+        If ``S`` is not positive definite.
     """
     PHt = P @ H.T
     S = _symmetrise(H @ PHt + R)
@@ -891,7 +928,7 @@ class KalmanFilter:
         _check_finite(z, "z")
         R = _meas_noise(R, self.R, self.dim_z, m)
         self.y = z - H @ self.x
-        x, P, self.K, self.S, self.log_likelihood = _kalman_update(self.x, self.P, self.y, H, R)
+        x, P, self.K, self.S, self.log_likelihood = joseph_update(self.x, self.P, self.y, H, R)
         _store(self, x=x, P=P)
         self.x_post = self.x.copy()
         self.P_post = self.P.copy()
@@ -1045,7 +1082,7 @@ class ExtendedKalmanFilter:
         self.H = Hm
         self.z_pred = zp
         self.y = y
-        x, P, self.K, self.S, self.log_likelihood = _kalman_update(self.x, self.P, y, Hm, R)
+        x, P, self.K, self.S, self.log_likelihood = joseph_update(self.x, self.P, y, Hm, R)
         _store(self, x=x, P=P)
         self.x_post = self.x.copy()
         self.P_post = self.P.copy()
