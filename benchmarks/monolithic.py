@@ -18,7 +18,7 @@ How each block becomes whole-array code (``N`` macro steps of ``h``, ``t_n = t0 
   doubling prefix scan (:func:`affine_scan`, ``log2 N`` whole-array passes).
 - **LeverArm** rebuilds each step's inputs from step-end values and increments
   (quartic rate path, quadratic specific-force path, cubic Hermite flexure path, as
-  :class:`models.conventions.StepPath` does): every step's nodes are built at once,
+  :class:`models.step_paths.StepPath` does): every step's nodes are built at once,
   the slave kinematics evaluated on all ``N m`` nodes, the Simpson sums contracted.
 - **StrapdownImu**: the Gauss-Markov bias is a first-order recursion (``lfilter``),
   the random walk a cumulative sum, everything else elementwise.
@@ -40,17 +40,11 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from models.conventions import (
-    cross,
-    dcm_to_euler,
-    euler_to_dcm,
-    rotvec_to_dcm_and_jacobian,
-    simpson_nodes,
-    substeps,
-)
+from models.conventions import cross, dcm_to_euler, euler_to_dcm, rotvec_to_dcm_and_jacobian
 from models.deck_flexure import _noise_factor, discretize_flexure
 from models.earth import euler_motion_truth, omega_ie_n
 from models.lever_arm import r0_matrix
+from models.step_paths import simpson_nodes, substeps
 from models.strapdown_imu import PRESETS, integrated_first_order
 
 HERE = Path(__file__).resolve().parent

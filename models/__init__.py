@@ -12,7 +12,7 @@ import pkgutil
 
 from models.block import Block
 
-_NOT_BLOCKS = {"block", "conventions", "earth"}
+_NOT_BLOCKS = {"block", "constants", "conventions", "earth", "frames", "step_paths"}
 
 
 def find_blocks(package: str, path: list[str]) -> dict[str, type[Block]]:

@@ -81,7 +81,8 @@ import numpy as np
 
 from models.block import Block, input_, output, parameter
 from models.constants import OMEGA_IE
-from models.conventions import rot_z, rotvec_to_dcm, substeps
+from models.conventions import rot_z, rotvec_to_dcm
+from models.step_paths import substeps
 
 _ARCMIN = math.pi / 180.0 / 60.0
 _DEG = math.pi / 180.0

@@ -31,7 +31,7 @@ Increments (plain integrals over ``[t, t + h]``, no coning/sculling terms)::
     dtheta_s = integral omega_is_s dt,       dv_s = integral f_s dt
 
 by composite Simpson on ``n = round(h / dt_truth)`` sub-steps. Inside the step
-the inputs are rebuilt (:class:`models.conventions.StepPath`): ``omega`` is the
+the inputs are rebuilt (:class:`models.step_paths.StepPath`): ``omega`` is the
 quartic through the previous and current step-end ``omega_ib_b`` and
 ``omega_dot_b`` whose integral is ``dtheta_b`` (connect ShipMotion's
 ``omega_dot_b``); ``f_b`` the quadratic through the previous and current ``f_b``
@@ -64,14 +64,11 @@ import numpy as np
 
 from models.block import Block, input_, output, parameter
 from models.constants import OMEGA_IE
-from models.conventions import (
+from models.conventions import cross, euler_to_dcm, euler_to_dcm_3, rotvec_to_dcm_and_jacobian
+from models.step_paths import (
     StepPath,
-    cross,
-    euler_to_dcm,
-    euler_to_dcm_3,
     hermite_basis,
     path_basis,
-    rotvec_to_dcm_and_jacobian,
     simpson_nodes,
     step_linear,
     step_quadratic,

@@ -39,8 +39,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from models.block import Block, parameter
-from models.conventions import simpson_nodes, substeps
 from models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
+from models.step_paths import simpson_nodes, substeps
 
 _DEG = math.pi / 180.0
 

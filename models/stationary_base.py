@@ -38,9 +38,9 @@ import math
 import numpy as np
 
 from models.block import Block, parameter
-from models.conventions import substeps
 from models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
 from models.gauss_markov import discretize_gm2
+from models.step_paths import substeps
 
 _DEG = math.pi / 180.0
 

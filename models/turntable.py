@@ -25,7 +25,7 @@ the axis in base axes, derivatives taken in the base frame)::
 
 The table angle is closed form, so its share of ``dtheta_s`` is exact; the
 integrals are composite Simpson on ``n = round(h / dt_truth)`` sub-steps. The
-base's path inside the step is rebuilt (:class:`models.conventions.StepPath`)
+base's path inside the step is rebuilt (:class:`models.step_paths.StepPath`)
 from the previous and current step-end values and the increments: ``omega``
 quartic from ``omega_ib_b``, ``omega_dot_b`` (optional input) and ``dtheta_b``;
 ``f_b`` quadratic from ``f_b`` and ``dv_b``. This is exact for a stationary base
@@ -53,15 +53,8 @@ import math
 import numpy as np
 
 from models.block import Block, input_, output, parameter
-from models.conventions import (
-    StepPath,
-    cross,
-    dcm_to_euler,
-    euler_to_dcm,
-    simpson_nodes,
-    substeps,
-    vec3,
-)
+from models.conventions import cross, dcm_to_euler, euler_to_dcm, vec3
+from models.step_paths import StepPath, simpson_nodes, substeps
 
 _DEG = math.pi / 180.0
 
