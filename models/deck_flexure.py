@@ -46,8 +46,7 @@ import numpy as np
 from scipy.linalg import expm
 
 from models.block import Block, output, parameter
-
-_ARCMIN = math.pi / 180.0 / 60.0
+from models.constants import ARCMIN
 
 
 def discretize_flexure(beta: float, q: float, h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -112,7 +111,7 @@ class DeckFlexure(Block):
         parameter(
             "tau", (600.0, 600.0, 600.0), "s", "correlation time per axis (beta = 2.146/tau)"
         ),
-        parameter("sigma", (2.0 * _ARCMIN,) * 3, "rad", "stationary std per axis"),
+        parameter("sigma", (2.0 * ARCMIN,) * 3, "rad", "stationary std per axis"),
         parameter("seed", 0, description="random seed"),
         output("theta", (0.0, 0.0, 0.0), "rad", "flexure angle, master body axes"),
         output("theta_dot", (0.0, 0.0, 0.0), "rad/s", "flexure rate"),

@@ -80,12 +80,10 @@ import math
 import numpy as np
 
 from models.block import Block, input_, output, parameter
-from models.constants import OMEGA_IE
+from models.constants import ARCMIN, DEG, OMEGA_IE
 from models.conventions import rot_z, rotvec_to_dcm
 from models.step_paths import substeps
 
-_ARCMIN = math.pi / 180.0 / 60.0
-_DEG = math.pi / 180.0
 _V3 = (0.0, 0.0, 0.0)
 
 
@@ -166,25 +164,25 @@ class HrgPlatform(Block):
     """Gimballed HRG platform on a stationary base: free level axes, 90 deg azimuth indexing."""
 
     variables = (
-        parameter("lat", 45.0 * _DEG, "rad", "geodetic latitude L"),
+        parameter("lat", 45.0 * DEG, "rad", "geodetic latitude L"),
         parameter("g", 9.7966, "m/s2", "gravity magnitude"),
-        parameter("azimuth0", 100.0 * _DEG, "rad", "initial platform azimuth A (CCW from ENU)"),
-        parameter("theta_E0", 3.0 * _ARCMIN, "rad", "initial level misalignment about east"),
-        parameter("theta_N0", 3.0 * _ARCMIN, "rad", "initial level misalignment about north"),
+        parameter("azimuth0", 100.0 * DEG, "rad", "initial platform azimuth A (CCW from ENU)"),
+        parameter("theta_E0", 3.0 * ARCMIN, "rad", "initial level misalignment about east"),
+        parameter("theta_N0", 3.0 * ARCMIN, "rad", "initial level misalignment about north"),
         parameter("index_time", 200.0, "s", "start of the indexing move (< 0: never)"),
-        parameter("index_angle", 90.0 * _DEG, "rad", "commanded indexing angle (CCW > 0)"),
+        parameter("index_angle", 90.0 * DEG, "rad", "commanded indexing angle (CCW > 0)"),
         parameter("index_error", 0.0, "rad", "indexing error: turned minus commanded angle"),
-        parameter("index_rate", 10.0 * _DEG, "rad/s", "largest indexing rate"),
-        parameter("index_accel", 10.0 * _DEG, "rad/s2", "indexing acceleration"),
+        parameter("index_rate", 10.0 * DEG, "rad/s", "largest indexing rate"),
+        parameter("index_accel", 10.0 * DEG, "rad/s2", "indexing acceleration"),
         parameter("settle_time", 0.0, "s", "wait after the move before position = 2"),
         parameter("torque_scale_error", 0.0, "1", "scale error dk_z of the azimuth command"),
         parameter("dt_truth", 0.01, "s", "inner step while indexing"),
         input_("omega_err_p", _V3, "rad/s", "gyro error rates (measured - true), p axes"),
         output("omega_ip_p", _V3, "rad/s", "inertial angular rate of the platform, p axes"),
-        output("azimuth", 100.0 * _DEG, "rad", "platform azimuth A in (-pi, pi]"),
+        output("azimuth", 100.0 * DEG, "rad", "platform azimuth A in (-pi, pi]"),
         output("f_p", _V3, "m/s2", "specific force along the platform axes"),
-        output("theta_E", 3.0 * _ARCMIN, "rad", "level misalignment about east"),
-        output("theta_N", 3.0 * _ARCMIN, "rad", "level misalignment about north"),
+        output("theta_E", 3.0 * ARCMIN, "rad", "level misalignment about east"),
+        output("theta_N", 3.0 * ARCMIN, "rad", "level misalignment about north"),
         output("drift_rate_n", _V3, "rad/s", "platform drift rate from gyro errors, ENU"),
         output("position", 1.0, "1", "1: position 1, 0: indexing or settling, 2: position 2"),
     )

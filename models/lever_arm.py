@@ -63,7 +63,7 @@ import math
 import numpy as np
 
 from models.block import Block, input_, output, parameter
-from models.constants import OMEGA_IE
+from models.constants import DEG, OMEGA_IE
 from models.conventions import cross, euler_to_dcm, euler_to_dcm_3, rotvec_to_dcm_and_jacobian
 from models.step_paths import (
     StepPath,
@@ -74,8 +74,6 @@ from models.step_paths import (
     step_quadratic,
     substeps,
 )
-
-_DEG = math.pi / 180.0
 
 
 def r0_matrix(r0: np.ndarray) -> np.ndarray:
@@ -100,9 +98,7 @@ class LeverArm(Block):
 
     variables = (
         parameter("r0", (10.0, 10.0, 5.0), "m", "lever arm master -> slave, master body axes"),
-        parameter(
-            "mount_rpy", (1.0 * _DEG, 1.0 * _DEG, 30.0 * _DEG), "rad", "slave mounting C_s_d"
-        ),
+        parameter("mount_rpy", (1.0 * DEG, 1.0 * DEG, 30.0 * DEG), "rad", "slave mounting C_s_d"),
         parameter("flexure", 1, description="1: use the flexure inputs, 0: rigid deck"),
         parameter("dt_truth", 1.0e-3, "s", "inner integration step"),
         input_("omega_ib_b", (0.0, 0.0, 0.0), "rad/s", "master rate w.r.t. inertial"),
@@ -215,7 +211,7 @@ class LeverArm(Block):
         w_ie = np.array([OMEGA_IE * math.cos(lat), 0.0, -OMEGA_IE * math.sin(lat)])
         w_eb = np.asarray(self.omega_ib_b, dtype=float) - w_ie @ c_b_n
         self.v_n_s = np.asarray(self.v_n, dtype=float) + c_b_n @ (
-            _cross3(w_eb, self.r_p) + self._R0 @ thd
+            cross(w_eb, self.r_p) + self._R0 @ thd
         )
 
     def _step_basis(self, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
@@ -301,10 +297,3 @@ def _dcm_to_euler3(c: np.ndarray) -> np.ndarray:
     return np.array(
         [math.atan2(c21, c22), math.atan2(-c20, math.hypot(c21, c22)), math.atan2(c10, c00)]
     )
-
-
-def _cross3(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Cross product of two 3-vectors (scalar math)."""
-    a0, a1, a2 = a.tolist()
-    b0, b1, b2 = b.tolist()
-    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])

@@ -13,7 +13,8 @@ Inputs are the true navigation state (NED velocity ``v_n``, attitude
 
 ``delta = attitude_error + attitude_error_sigma * z`` is drawn once at
 initialisation (Euler-angle errors added to roll, pitch, yaw). The angle outputs
-roll, yaw and longitude are wrapped to [-pi, pi); pitch and latitude are not.
+roll, yaw and longitude are wrapped to (-pi, pi]
+(:func:`models.conventions.wrap_angle`); pitch and latitude are not.
 ``e_gm`` starts from its stationary distribution and is propagated exactly::
 
     e+ = exp(-dt / tau) e + sigma_gm sqrt(1 - exp(-2 dt / tau)) z
@@ -44,27 +45,12 @@ from collections import deque
 import numpy as np
 
 from models.block import Block, input_, output, parameter
+from models.conventions import wrap_angle
 
 _V3 = (0.0, 0.0, 0.0)
 # Layout of a buffered sample: v_n (0:3), rpy (3:6), lat, lon, h (6:9).
 _ANGLE = np.array([False, False, False, True, True, True, False, True, False])
 _WRAP_RPY = np.array([True, False, True])
-
-
-def wrap_pi(angle: np.ndarray) -> np.ndarray:
-    """Wrap angles to [-pi, pi).
-
-    Parameters
-    ----------
-    angle : ndarray
-        Angles [rad].
-
-    Returns
-    -------
-    ndarray
-        Same shape, wrapped [rad].
-    """
-    return (np.asarray(angle, float) + math.pi) % (2.0 * math.pi) - math.pi
 
 
 class MasterIns(Block):
@@ -128,15 +114,15 @@ class MasterIns(Block):
         t1, x1 = buf[1]
         w = (target - t0) / (t1 - t0)
         diff = x1 - x0
-        diff = np.where(_ANGLE, wrap_pi(diff), diff)
+        diff = np.where(_ANGLE, wrap_angle(diff), diff)
         return x0 + w * diff
 
     def _publish(self, x: np.ndarray, white: np.ndarray) -> None:
         self.v_master_n = x[0:3] + self._gm + white
         rpy = x[3:6] + self._delta
-        self.rpy_master = np.where(_WRAP_RPY, wrap_pi(rpy), rpy)
+        self.rpy_master = np.where(_WRAP_RPY, wrap_angle(rpy), rpy)
         self.lat_master = float(x[6])
-        self.lon_master = float(wrap_pi(x[7]))
+        self.lon_master = float(wrap_angle(x[7]))
         self.h_master = float(x[8])
 
     def step(self, t: float, h: float) -> None:

@@ -39,21 +39,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from models.block import Block, parameter
+from models.constants import DEG
 from models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
 from models.step_paths import simpson_nodes, substeps
-
-_DEG = math.pi / 180.0
 
 
 class ShipMotion(Block):
     """Moored ship motion: sinusoidal attitude and linear motion, exact rates and specific force."""
 
     variables = (
-        parameter("lat0", 30.0 * _DEG, "rad", "latitude of the mooring"),
+        parameter("lat0", 30.0 * DEG, "rad", "latitude of the mooring"),
         parameter("lon0", 0.0, "rad", "longitude of the mooring"),
         parameter("h0", 0.0, "m", "height of the master IMU above the ellipsoid"),
         parameter("rpy_mean", (0.0, 0.0, 0.0), "rad", "mean roll, pitch, heading"),
-        parameter("amp", (12.5 * _DEG, 10.0 * _DEG, 5.0 * _DEG), "rad", "roll/pitch/yaw amplitude"),
+        parameter("amp", (12.5 * DEG, 10.0 * DEG, 5.0 * DEG), "rad", "roll/pitch/yaw amplitude"),
         parameter("period", (12.0, 6.0, 8.0), "s", "roll/pitch/yaw period (<= 0: axis off)"),
         parameter("phase", (0.0, 0.0, 0.0), "rad", "roll/pitch/yaw phase"),
         parameter("lin_amp", (0.0, 0.0, 0.0), "m", "surge/sway/heave amplitude"),

@@ -38,11 +38,10 @@ import math
 import numpy as np
 
 from models.block import Block, parameter
+from models.constants import DEG
 from models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
 from models.gauss_markov import discretize_gm2
 from models.step_paths import substeps
-
-_DEG = math.pi / 180.0
 
 
 def _omega(period: np.ndarray) -> np.ndarray:
@@ -56,7 +55,7 @@ class StationaryBase(Block):
 
     variables = (
         parameter("rpy0", (0.0, 0.0, 0.0), "rad", "mean roll, pitch, yaw"),
-        parameter("lat0", 45.0 * _DEG, "rad", "latitude"),
+        parameter("lat0", 45.0 * DEG, "rad", "latitude"),
         parameter("lon0", 0.0, "rad", "longitude"),
         parameter("h0", 0.0, "m", "height above the ellipsoid"),
         parameter("sway_amp", (0.0, 0.0, 0.0), "rad", "angular sway amplitude (roll, pitch, yaw)"),

@@ -64,13 +64,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from models.block import Block, input_, output, parameter
-
-# Engineering units in SI (for presets and for users converting paper figures).
-DEG_PER_HOUR = math.pi / 180.0 / 3600.0  #: 1 deg/h in rad/s
-DEG_PER_SQRT_HOUR = math.pi / 180.0 / 60.0  #: 1 deg/sqrt(h) in rad/sqrt(s)
-MICRO_G = 9.80665e-6  #: 1 ug in m/s2 (also 1 ug/sqrt(Hz) in m/s/sqrt(s))
-ARCSEC = math.pi / 180.0 / 3600.0  #: 1 arcsec in rad
-PPM = 1.0e-6  #: 1 ppm, dimensionless
+from models.constants import ARCSEC, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MICRO_G, PPM
 
 UNSET = -1.0  #: start value of the statistical parameters: "take it from the grade"
 

@@ -53,10 +53,9 @@ import math
 import numpy as np
 
 from models.block import Block, input_, output, parameter
+from models.constants import DEG
 from models.conventions import cross, dcm_to_euler, euler_to_dcm, vec3
 from models.step_paths import StepPath, simpson_nodes, substeps
-
-_DEG = math.pi / 180.0
 
 
 class Turntable(Block):
@@ -67,9 +66,9 @@ class Turntable(Block):
         parameter("angle0", 0.0, "rad", "initial (and hold) table angle"),
         parameter("index_times", (200.0, -1.0, -1.0, -1.0), "s", "indexing times (< 0: unused)"),
         parameter("index_angles", (0.5 * math.pi, 0.0, 0.0, 0.0), "rad", "indexing target angles"),
-        parameter("rate_limit", 30.0 * _DEG, "rad/s", "indexing rate limit"),
-        parameter("accel_limit", 200.0 * _DEG, "rad/s2", "acceleration limit (modes 1, 2)"),
-        parameter("rate", 100.0 * _DEG, "rad/s", "rotation rate in mode 2"),
+        parameter("rate_limit", 30.0 * DEG, "rad/s", "indexing rate limit"),
+        parameter("accel_limit", 200.0 * DEG, "rad/s2", "acceleration limit (modes 1, 2)"),
+        parameter("rate", 100.0 * DEG, "rad/s", "rotation rate in mode 2"),
         parameter("reversal_period", 10.0, "s", "time between reversals in mode 2 (<= 0: none)"),
         parameter("rotation_start", 0.0, "s", "start of the rotation in mode 2"),
         parameter("mount_rpy", (0.0, 0.0, 0.0), "rad", "sensor mounting on the table, C_s_t"),

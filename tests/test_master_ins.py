@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from models.master_ins import MasterIns, wrap_pi
+from models.conventions import wrap_angle
+from models.master_ins import MasterIns
 
 RATE_V = np.array([1.0, -2.0, 0.5])  # m/s per s
 RATE_RPY = np.array([0.01, -0.02, 0.3])  # rad/s; yaw crosses +-pi during the run
@@ -28,7 +29,7 @@ def make(**params: object) -> MasterIns:
 def truth(t: float) -> dict[str, object]:
     """Ramp inputs at time t (yaw wrapped as a motion block would deliver it)."""
     rpy = RPY0 + RATE_RPY * t
-    rpy[2] = wrap_pi(rpy[2])
+    rpy[2] = wrap_angle(rpy[2])
     return {
         "v_n": RATE_V * t,
         "rpy": rpy,
@@ -71,7 +72,7 @@ def test_ramp_shows_exactly_the_configured_delay(latency: float, jitter: bool) -
     # Whole-step latency: an exact shift; otherwise linear interpolation, exact on a ramp.
     np.testing.assert_allclose(out["v"], RATE_V * delayed[:, None], rtol=0, atol=1e-12)
     expected_rpy = RPY0 + RATE_RPY * delayed[:, None]
-    np.testing.assert_allclose(wrap_pi(out["rpy"] - expected_rpy), 0.0, atol=1e-12)
+    np.testing.assert_allclose(wrap_angle(out["rpy"] - expected_rpy), 0.0, atol=1e-12)
     np.testing.assert_allclose(out["pos"][:, 2], 10.0 + 0.1 * delayed, atol=1e-12)
     # The delay read back from the velocity ramp, where it is defined (t > latency).
     valid = out["t"] > latency + 1e-9
@@ -96,7 +97,7 @@ def test_attitude_error_is_added() -> None:
     ins.do_step(0.0, 0.01)
     expected = ins.rpy + delta
     np.testing.assert_allclose(ins.rpy_master[:2], expected[:2], rtol=1e-15)
-    # Yaw 3.14 + 0.005 passes +pi: it is wrapped to [-pi, pi).
+    # Yaw 3.14 + 0.005 passes +pi: it is wrapped to (-pi, pi].
     np.testing.assert_allclose(ins.rpy_master[2], expected[2] - 2.0 * math.pi, rtol=1e-15)
     assert ins.rpy_master[2] < -3.0
 

@@ -12,17 +12,13 @@ import numpy as np
 import pytest
 
 from cosim.estimation.allan import allan_deviation, relative_error
+from models.constants import DEG_PER_HOUR, DEG_PER_SQRT_HOUR, G0, MICRO_G
 from models.strapdown_imu import (
-    DEG_PER_HOUR,
-    DEG_PER_SQRT_HOUR,
-    MICRO_G,
     PRESETS,
     StrapdownImu,
     integrated_first_order,
     white_density_from_random,
 )
-
-G = 9.80665  # m/s2, the g of the ug in the papers' figures
 
 
 def make(**params: object) -> StrapdownImu:
@@ -61,7 +57,7 @@ def test_default_instance_is_a_perfect_imu() -> None:
     h, n = 0.01, 2000
     rng = np.random.default_rng(1)
     dtheta = rng.standard_normal((n, 3)) * np.radians(100.0) * h  # up to a few 100 deg/s
-    dv = rng.standard_normal((n, 3)) * 20.0 * h + np.array([0.0, 0.0, -G * h])
+    dv = rng.standard_normal((n, 3)) * 20.0 * h + np.array([0.0, 0.0, -G0 * h])
     imu = make()
     out = run(imu, h, n, dtheta, dv)
     assert np.max(np.abs(out["dtheta_meas_b"] - dtheta)) <= 1e-15
@@ -86,13 +82,13 @@ def test_paper_figures_arw_vrw_from_allan_deviation(
     # Mapping under test: a paper's "random" figure is the Allan deviation at 1 s of a
     # white noise, so ARW = random * sqrt(1 s); the constant figure is the fixed bias.
     arw = white_density_from_random(gyro_random * DEG_PER_HOUR)
-    vrw = white_density_from_random(accel_random * G)
+    vrw = white_density_from_random(accel_random * G0)
     h, n = 0.1, 40_000  # 4000 s; tau = 1 s is a cluster of m = 10 samples
     imu = make(
         seed=3,
         gyro_bias=[gyro_drift * DEG_PER_HOUR] * 3,
         gyro_arw=arw,
-        accel_bias=[accel_bias * G] * 3,
+        accel_bias=[accel_bias * G0] * 3,
         accel_vrw=vrw,
     )
     out = run(imu, h, n)
@@ -110,7 +106,7 @@ def test_paper_figures_arw_vrw_from_allan_deviation(
     t_total = n * h
     mean_g, mean_a = out["omega_meas_b"].mean(axis=0), out["f_meas_b"].mean(axis=0)
     assert np.all(np.abs(mean_g - gyro_drift * DEG_PER_HOUR) < 5.0 * arw / math.sqrt(t_total))
-    assert np.all(np.abs(mean_a - accel_bias * G) < 5.0 * vrw / math.sqrt(t_total))
+    assert np.all(np.abs(mean_a - accel_bias * G0) < 5.0 * vrw / math.sqrt(t_total))
 
 
 def test_gauss_markov_bias_variance_and_correlation_time() -> None:
@@ -166,7 +162,7 @@ def test_scale_factor_and_misalignment_are_applied_exactly() -> None:
     )
     h = 0.01
     dtheta = np.radians([10.0, -20.0, 100.0]) * h
-    dv = np.array([0.3, -0.2, -G]) * h
+    dv = np.array([0.3, -0.2, -G0]) * h
     out = run(imu, h, 3, np.tile(dtheta, (3, 1)), np.tile(dv, (3, 1)))
     expected_g = (np.eye(3) + np.diag(sf_g) + m_g) @ dtheta
     expected_a = (np.eye(3) + np.diag(sf_a) + m_a) @ dv
@@ -200,7 +196,7 @@ def test_quantisation_outputs_whole_lsb_and_does_not_accumulate() -> None:
     h, n = 0.01, 10_000
     t = np.arange(n)[:, None] * h
     dtheta = 0.003 * np.sin(0.7 * t + np.array([0.0, 1.0, 2.0])) * h + 3.3e-6
-    dv = np.array([0.11, -0.07, -G]) * h + 0.02 * np.cos(1.3 * t) * h
+    dv = np.array([0.11, -0.07, -G0]) * h + 0.02 * np.cos(1.3 * t) * h
     imu = make(gyro_lsb=lsb_g, accel_lsb=lsb_a)
     out = run(imu, h, n, dtheta, dv)
     for meas, true, lsb in ((out["dtheta_meas_b"], dtheta, lsb_g), (out["dv_meas_b"], dv, lsb_a)):
@@ -228,7 +224,7 @@ def test_rate_biased_rlg_reduces_random_walk_by_the_configured_factor() -> None:
     radius = 0.05  # m, accelerometer offset from the table axis
     dv = np.zeros((n, 3))
     dv[:, 0] = -radius * table_rate**2 * h  # centripetal (specific force towards the axis)
-    dv[:, 2] = -G * h
+    dv[:, 2] = -G0 * h
     rwc = 0.001 * DEG_PER_SQRT_HOUR
     results = {}
     for mode, seed in ((1, 1), (2, 2)):
@@ -282,7 +278,7 @@ def test_grade_presets_and_explicit_overrides() -> None:
 
 def test_same_seed_same_outputs_and_grades_make_errors() -> None:
     h, n = 0.01, 200
-    dv = np.tile([0.0, 0.0, -G * h], (n, 1))
+    dv = np.tile([0.0, 0.0, -G0 * h], (n, 1))
     a = run(make(grade=2, seed=7, gyro_lsb=1e-7), h, n, dv=dv)
     b = run(make(grade=2, seed=7, gyro_lsb=1e-7), h, n, dv=dv)
     c = run(make(grade=2, seed=8, gyro_lsb=1e-7), h, n, dv=dv)
