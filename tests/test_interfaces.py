@@ -13,14 +13,8 @@ import pytest
 import models
 from cosim.blocks import InProcessHost, Variable, apply_rename
 from cosim.errors import FmuError
-from cosim.interop.interfaces import (
-    InterfaceError,
-    available_roles,
-    check_fmu,
-    load_role,
-    match_role,
-    read_rename_file,
-)
+from cosim.interop.fmu_check import check_fmu, read_rename_file
+from cosim.interop.interfaces import InterfaceError, available_roles, load_role, match_role
 
 ROLES = ["accelerometer", "flexure", "hrg_gyro", "imu", "master_ins", "motion"]
 # every spec, including any added later, is checked against the models it names

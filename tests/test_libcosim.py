@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 
 import cosim
-from cosim.interop.libcosim_runner import LibcosimError, run_libcosim
+from cosim.interop.libcosim_exec import LibcosimError
+from cosim.interop.libcosim_runner import run_libcosim
 from cosim.scenario import build_master
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -16,7 +16,8 @@ import pytest
 from fmpy.ssp.ssd import read_ssd
 
 import cosim
-from cosim.interop.libcosim_runner import LibcosimError, run_libcosim_ssp
+from cosim.interop.libcosim_exec import LibcosimError
+from cosim.interop.libcosim_runner import run_libcosim_ssp
 from cosim.interop.ssp import SspError, export_ssp
 
 ROOT = Path(__file__).resolve().parents[1]

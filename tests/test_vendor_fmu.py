@@ -20,7 +20,7 @@ from fmpy.validation import validate_fmu
 
 import cosim
 from cosim.interop.cbuild import build_c_fmu
-from cosim.interop.interfaces import check_fmu
+from cosim.interop.fmu_check import check_fmu
 from cosim.scenario import build_master
 
 ROOT = Path(__file__).resolve().parents[1]
