@@ -87,6 +87,14 @@ class Var:
         return isinstance(self.start, (tuple, list))
 
     @property
+    def variability(self) -> str:
+        """FMI variability: ``"fixed"`` for a parameter, else ``"discrete"`` (Integer, Boolean)
+        or ``"continuous"`` (Real)."""
+        if self.causality == "parameter":
+            return "fixed"
+        return "continuous" if self.kind == "Real" else "discrete"
+
+    @property
     def kind(self) -> str:
         """FMI type: ``"Real"``, ``"Integer"`` or ``"Boolean"``."""
         first = self.start[0] if self.is_vector else self.start
@@ -126,17 +134,8 @@ def input_(name: str, start: Any = 0.0, unit: str = "1", description: str = "") 
 
     Parameters
     ----------
-    name : str
-        Attribute name on the model (a Python identifier); vectors become the FMI
-        scalars ``name[1]`` .. ``name[n]``.
-    start : float, int, bool or tuple
-        Start value, used until a connection sets the input. Its type sets the FMI
-        type (Real, Integer, Boolean); a tuple makes a vector of that length.
-    unit : str
-        SI unit (a key of :data:`UNIT_BASE` or any other name), ``"1"`` when
-        dimensionless.
-    description : str
-        One line for the model description.
+    name, start, unit, description : str, float or tuple
+        As for :func:`parameter`; ``start`` holds until a connection sets the input.
 
     Returns
     -------
@@ -150,17 +149,9 @@ def output(name: str, start: Any = 0.0, unit: str = "1", description: str = "") 
 
     Parameters
     ----------
-    name : str
-        Attribute name on the model (a Python identifier); vectors become the FMI
-        scalars ``name[1]`` .. ``name[n]``.
-    start : float, int, bool or tuple
-        Start value, until :meth:`Block.initialize` sets the output. Its type sets
-        the FMI type (Real, Integer, Boolean); a tuple makes a vector of that length.
-    unit : str
-        SI unit (a key of :data:`UNIT_BASE` or any other name), ``"1"`` when
-        dimensionless.
-    description : str
-        One line for the model description.
+    name, start, unit, description : str, float or tuple
+        As for :func:`parameter`; ``start`` holds until :meth:`Block.initialize` sets
+        the output.
 
     Returns
     -------
@@ -306,14 +297,9 @@ class Block(Fmi2Slave):
             )
         setattr(self, var.name, self._start_value(var))
         causality = _CAUSALITY[var.causality]
-        if var.causality == "parameter":
-            variability, initial = Fmi2Variability.fixed, Fmi2Initial.exact
-        elif var.kind != "Real":
-            variability, initial = Fmi2Variability.discrete, Fmi2Initial.exact
-        else:
-            variability, initial = Fmi2Variability.continuous, Fmi2Initial.exact
-        if var.causality == "input":
-            initial = None  # inputs carry a start value but no initial attribute
+        variability = getattr(Fmi2Variability, var.variability)
+        # inputs carry a start value but no initial attribute
+        initial = None if var.causality == "input" else Fmi2Initial.exact
         names = (
             [var.name] if not var.is_vector else [f"{var.name}[{i + 1}]" for i in range(var.size)]
         )

@@ -1,0 +1,240 @@
+"""Model documentation pages, ``models/docs/<Model>.md``, generated from the models themselves.
+
+Each page has three parts, each written in one place only:
+
+1. the equations and conventions: the model module's docstring, turned from
+   reStructuredText into Markdown (``literal`` -> `literal`, ``::`` blocks -> code
+   blocks, underlined section titles -> ``###`` headings, Sphinx roles dropped);
+2. the variable table, generated from the class's declarations (:attr:`Block.variables
+   <models.block.Block.variables>`: name, causality, variability, type, unit, start,
+   description);
+3. hand-written notes (reference results, test coverage, worked examples), kept from
+   the existing page below the line :data:`NOTES_MARKER`.
+
+``python -m cosim.interop.modeldocs`` rewrites every page; ``--check`` only reports the
+pages that are out of date (exit code 1), which the test suite runs.
+"""
+
+from __future__ import annotations
+
+import inspect
+import re
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+import models
+from models.block import Block, Var
+
+DOCS_DIR = Path(models.__file__).resolve().parent / "docs"
+
+#: The line after which a page's hand-written notes start (kept as they are).
+NOTES_MARKER = "<!-- notes: hand-written below this line, kept by the generator -->"
+
+_ROLE = re.compile(r":(?:func|class|mod|meth|data|attr|obj|exc):`~?([^`<]+?)(?:\s*<([^>]+)>)?`")
+
+
+def _start(var: Var) -> str:
+    """A start value as the table shows it: ``(0, 0, 0)`` for vectors, ``%.10g`` for reals."""
+
+    def one(x: object) -> str:
+        if isinstance(x, bool):
+            return "true" if x else "false"
+        if isinstance(x, float):
+            return f"{x:.10g}"
+        return str(x)
+
+    if var.is_vector:
+        return "(" + ", ".join(one(x) for x in var.start) + ")"
+    return one(var.start)
+
+
+def variable_table(cls: type[Block]) -> str:
+    """The Markdown table of a block's variables, in declaration order.
+
+    Parameters
+    ----------
+    cls : type
+        A :class:`models.block.Block` subclass.
+
+    Returns
+    -------
+    str
+        Header, separator and one row per declared variable (vectors as ``name[n]``).
+    """
+    rows = [
+        "| name | causality | variability | type | unit | start | description |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for v in cls.variables:
+        name = f"{v.name}[{v.size}]" if v.is_vector else v.name
+        description = v.description.replace("|", "\\|")
+        rows.append(
+            f"| `{name}` | {v.causality} | {v.variability} | {v.kind} | {v.unit} | "
+            f"{_start(v)} | {description} |"
+        )
+    return "\n".join(rows)
+
+
+def rst_to_markdown(text: str) -> str:
+    """The small reStructuredText subset of the model docstrings, as Markdown.
+
+    Parameters
+    ----------
+    text : str
+        A cleaned docstring (:func:`inspect.cleandoc`).
+
+    Returns
+    -------
+    str
+        ``literal`` -> `literal`; a paragraph ending in ``::`` ends in ``:`` and its
+        indented block becomes a fenced code block; ``Title`` over a line of ``-`` or
+        ``~`` -> ``### Title``; Sphinx roles (``:func:`x```) -> `x`.
+    """
+    lines = text.split("\n")
+    out: list[str] = []
+    i = 0
+    while i < len(lines):
+        line = lines[i]
+        nxt = lines[i + 1] if i + 1 < len(lines) else ""
+        if line.strip() and re.fullmatch(r"[-~=]{3,}", nxt.strip()) and len(nxt) >= len(line):
+            out.append(f"### {_inline(line.strip())}")
+            i += 2
+            continue
+        if line.rstrip().endswith("::"):
+            head = line.rstrip()[:-2].rstrip()
+            if head:
+                out.append(_inline(head) + ":")
+            i += 1
+            block: list[str] = []
+            while i < len(lines) and (not lines[i].strip() or lines[i].startswith(" ")):
+                block.append(lines[i])
+                i += 1
+            while block and not block[-1].strip():
+                block.pop()
+            body = inspect.cleandoc("\n".join(block))
+            out += ["", "```", *body.split("\n"), "```", ""]
+            continue
+        out.append(_inline(line))
+        i += 1
+    markdown = "\n".join(out)
+    return re.sub(r"\n{3,}", "\n\n", markdown).strip() + "\n"
+
+
+def _inline(line: str) -> str:
+    line = _ROLE.sub(lambda m: f"`{m.group(2) or m.group(1)}`", line)
+    return line.replace("``", "`")
+
+
+def render(cls: type[Block], notes: str = "") -> str:
+    """The page of one block class.
+
+    Parameters
+    ----------
+    cls : type
+        A :class:`models.block.Block` subclass defined in a module of ``models``.
+    notes : str
+        The hand-written notes to append below :data:`NOTES_MARKER` ("" for none).
+
+    Returns
+    -------
+    str
+        The whole Markdown page, ending with a newline.
+    """
+    module = sys.modules[cls.__module__]
+    path = f"{cls.__module__.replace('.', '/')}.py"
+    summary = (inspect.getdoc(cls) or cls.__name__).split("\n")[0]
+    parts = [
+        f"# {cls.__name__}",
+        "",
+        f"{summary} Module `{path}`; FMU `fmus/build/{cls.__name__}.fmu` (`make fmus`); "
+        f"reference result `models/reference/{cls.__name__}.csv`.",
+        "",
+        f"<!-- generated by `python -m cosim.interop.modeldocs` from {path}: edit the module "
+        "docstring and the variable declarations there -->",
+        "",
+        "## Model",
+        "",
+        rst_to_markdown(inspect.getdoc(module) or "").rstrip("\n"),
+        "",
+        "## Variables",
+        "",
+        variable_table(cls),
+        "",
+        NOTES_MARKER,
+    ]
+    text = "\n".join(parts) + "\n"
+    notes = notes.strip("\n")
+    return text + ("\n" + notes + "\n" if notes else "")
+
+
+def notes_of(page: Path) -> str:
+    """The hand-written notes of an existing page (what follows :data:`NOTES_MARKER`).
+
+    Parameters
+    ----------
+    page : Path
+        A ``models/docs/<Model>.md`` file; a missing file has no notes.
+
+    Returns
+    -------
+    str
+        The notes ("" when the file or the marker is missing).
+    """
+    if not page.is_file():
+        return ""
+    text = page.read_text(encoding="utf-8")
+    _, found, notes = text.partition(NOTES_MARKER)
+    return notes if found else ""
+
+
+def outdated(docs_dir: Path = DOCS_DIR) -> dict[str, str]:
+    """Pages whose text differs from what :func:`render` makes of their model now.
+
+    Parameters
+    ----------
+    docs_dir : Path
+        Folder of the pages.
+
+    Returns
+    -------
+    dict of str to str
+        Model name -> its up-to-date page text, for every page that is missing or stale.
+    """
+    stale = {}
+    for name, cls in models.registry().items():
+        page = docs_dir / f"{name}.md"
+        text = render(cls, notes_of(page))
+        if not page.is_file() or page.read_text(encoding="utf-8") != text:
+            stale[name] = text
+    return stale
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Rewrite the stale pages, or with ``--check`` list them.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        Command-line arguments (``--check``); None for ``sys.argv[1:]``.
+
+    Returns
+    -------
+    int
+        0 when every page is up to date (or was rewritten), 1 for ``--check`` with stale
+        pages.
+    """
+    args = list(sys.argv[1:] if argv is None else argv)
+    stale = outdated()
+    if "--check" in args:
+        for name in stale:
+            print(f"models/docs/{name}.md is out of date: python -m cosim.interop.modeldocs")
+        return 1 if stale else 0
+    for name, text in stale.items():
+        (DOCS_DIR / f"{name}.md").write_text(text, encoding="utf-8")
+        print(f"wrote models/docs/{name}.md")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
