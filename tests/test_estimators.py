@@ -34,8 +34,8 @@ from cosim.estimation import (
     systematic_resample,
     unscented_transform,
     van_loan,
-    wrap_angle,
 )
+from models.conventions import wrap_angle
 
 # ----------------------------------------------------------------------------------------
 # A constant-velocity model in the plane: x = [px, vx, py, vy], z = [px, py]

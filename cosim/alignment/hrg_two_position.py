@@ -159,10 +159,10 @@ from cosim.estimation import (
     UnscentedParticleFilter,
     angle_mean_fn,
     angle_residual_fn,
-    wrap_angle,
 )
 from models.block import Block, input_, output, parameter
 from models.constants import OMEGA_IE
+from models.conventions import wrap_angle
 
 __all__ = [
     "AlignmentSequenceError",
@@ -477,6 +477,8 @@ class PositionFilter:
         Covariance (UPF: mixture covariance; KF: linearised from the linear state).
     ess : float
         UPF effective sample size (1 for the Kalman filters).
+    n_resamples : int
+        UPF resampling steps so far (0 for the Kalman filters).
     """
 
     def __init__(
@@ -590,6 +592,7 @@ class PositionFilter:
             self.x[_PSI] = wrap_angle(self.x[_PSI])
             self.P = self._f.P
             self.ess = self._f.ess
+        self.n_resamples = self._f.n_resamples if self.method == 1 else 0
 
 
 def _identity(x: np.ndarray, dt: float) -> np.ndarray:

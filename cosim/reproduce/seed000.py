@@ -49,11 +49,11 @@ from typing import Any
 import numpy as np
 
 from cosim.alignment.hrg_two_position import ARCMIN, DEG_H, METHODS
-from cosim.estimation import wrap_angle
 from cosim.master import CouplingWarning, Master
 from cosim.scenario import load_scenario
 from cosim.units import conversion_factor
 from models.constants import OMEGA_IE
+from models.conventions import wrap_angle
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "hrg_two_position.toml"
 #: Convergence band of the apparent azimuth (acceptance: 4') [arcmin].
