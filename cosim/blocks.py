@@ -248,7 +248,7 @@ class InProcessHost(BlockHost):
         self.source = f"{cls.__module__}.{cls.__qualname__}"
         self.guid = cls.model_guid() if hasattr(cls, "model_guid") else ""
         source_file = importlib.import_module(cls.__module__).__file__
-        self.sha256 = _sha256(Path(source_file)) if source_file else ""
+        self.sha256 = file_sha256(Path(source_file)) if source_file else ""
         self._new_instance()
         for sv in self.instance.vars.values():
             kind = type(sv).__name__
@@ -309,8 +309,20 @@ class InProcessHost(BlockHost):
         self.instance.terminate()
 
 
-def _sha256(path: Path) -> str:
-    return hashlib.sha256(path.read_bytes()).hexdigest()
+def file_sha256(path: str | Path) -> str:
+    """SHA-256 of a file's bytes: the hash results and reports give for FMUs and sources.
+
+    Parameters
+    ----------
+    path : str or Path
+        The file (an FMU, a model's source file).
+
+    Returns
+    -------
+    str
+        64 lower-case hex digits.
+    """
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
 #: A scalar variable name a scenario can use: ``name`` or ``name[i]``.
@@ -508,7 +520,7 @@ class FmuHost(BlockHost):
         self.model_description = md
         self.fmi_version = md.fmiVersion
         self.guid = md.guid
-        self.sha256 = _sha256(path)
+        self.sha256 = file_sha256(path)
         self.messages: list[str] = []
         try:
             self.variables = fmu_variables(md)

@@ -144,7 +144,7 @@ def fmus(fmu_dir: Path, build: bool) -> None:
     from fmpy import read_model_description
     from fmpy.validation import validate_fmu
 
-    from cosim.blocks import _sha256
+    from cosim.blocks import file_sha256
 
     if build:
         from cosim.interop.packaging import build_all
@@ -161,9 +161,8 @@ def fmus(fmu_dir: Path, build: bool) -> None:
         problems = validate_fmu(str(f))
         md = read_model_description(str(f), validate=False)
         bad += bool(problems)
-        click.echo(
-            f"{f.name:<28} {md.fmiVersion:<4} {md.guid:<37} {_sha256(f)[:12]:<13} {len(problems)}"
-        )
+        digest = file_sha256(f)[:12]
+        click.echo(f"{f.name:<28} {md.fmiVersion:<4} {md.guid:<37} {digest:<13} {len(problems)}")
         for p in problems:
             click.echo(f"    {p}")
     sys.exit(1 if bad else 0)

@@ -81,7 +81,8 @@ class MasterSettings:
     start : float
         Start time t0 [s].
     coupling : str
-        ``"gauss-seidel"`` or ``"jacobi"``.
+        ``"gauss-seidel"`` or ``"jacobi"`` (case and ``_`` for ``-`` do not matter; the
+        attribute holds the lower-case, hyphenated form).
     record_every : int
         Record every k-th macro step (t0 is always recorded), >= 1.
     n_steps : int
@@ -110,11 +111,13 @@ class MasterSettings:
                 f"steps of {self.step} s; change master.stop or master.step",
                 key="master.stop",
             )
-        if self.coupling not in (GAUSS_SEIDEL, JACOBI):
+        coupling = str(self.coupling).lower().replace("_", "-")
+        if coupling not in (GAUSS_SEIDEL, JACOBI):
             raise ScenarioError(
                 f"expected 'gauss-seidel' or 'jacobi', got '{self.coupling}'",
                 key="master.coupling",
             )
+        object.__setattr__(self, "coupling", coupling)
         every = self.record_every
         if isinstance(every, bool) or not isinstance(every, int) or every < 1:
             raise ScenarioError(f"expected a positive integer, got {every!r}", key="output.every")

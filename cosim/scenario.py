@@ -12,7 +12,7 @@ Format (README, "Scenario files", is the user's reference)::
     coupling = "gauss-seidel"   # or "jacobi"
 
     [blocks.flexure]
-    model = "GaussMarkov2"      # a class in models/ ... or
+    model = "GaussMarkov2"      # a registered name (cosim.registry: models/, filters) ... or
     # fmu = "../fmus/build/GaussMarkov2.fmu"   (relative to this file) ... or
     # class = "package.module:ClassName"
     rate = 1                    # steps every k-th macro step
@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from cosim import provenance, registry
 from cosim.blocks import REAL, BlockHost, FmuHost, InProcessHost, Variable
 from cosim.errors import FmuError, ScenarioError, UnitError
 from cosim.master import GAUSS_SEIDEL, Connection, Master, MasterSettings, System
@@ -173,7 +174,11 @@ class Scenario:
             raise self.error(exc.message, key=exc.key) from None
 
     def use_fmus(self, fmu_dir: str | Path) -> None:
-        """Run every built-in model from ``<fmu_dir>/<Model>.fmu`` instead of in-process.
+        """Run every truth model from ``<fmu_dir>/<Model>.fmu`` instead of in-process.
+
+        Truth models are the classes of ``models/`` (:func:`cosim.registry.truth_models`,
+        what ``make fmus`` packs); alignment filters and other blocks found through entry
+        points have no FMU and stay in-process.
 
         Parameters
         ----------
@@ -181,7 +186,7 @@ class Scenario:
             Folder of FMUs built by ``make fmus`` (normally ``fmus/build``).
         """
         for spec in self.blocks.values():
-            if spec.kind == "model":
+            if spec.kind == "model" and registry.is_truth_model(spec.source):
                 spec.kind = "fmu"
                 spec.source = str((Path(fmu_dir) / f"{spec.source}.fmu").resolve())
 
@@ -245,22 +250,11 @@ class Scenario:
             except FmuError as exc:
                 raise self.error(str(exc), key=f"{key}.fmu") from exc
         if spec.kind == "model":
-            import models
-
-            known = models.registry()
-            if spec.source in known:  # truth models first: filters are imported only if needed
-                return InProcessHost(spec.name, known[spec.source])
-            from cosim import alignment
-
-            known = {**known, **alignment.registry()}
-            if spec.source not in known:
-                hint = difflib.get_close_matches(spec.source, known, n=1)
-                tip = f" Did you mean '{hint[0]}'?" if hint else ""
-                raise self.error(
-                    f"unknown model '{spec.source}'.{tip} Known models: {', '.join(known)}",
-                    key=f"{key}.model",
-                )
-            return InProcessHost(spec.name, known[spec.source])
+            try:
+                cls = registry.find_block(spec.source)
+            except ScenarioError as exc:
+                raise self.error(exc.message, key=f"{key}.model") from exc
+            return InProcessHost(spec.name, cls)
         module_name, _, class_name = spec.source.partition(":")
         try:
             cls = getattr(importlib.import_module(module_name), class_name)
@@ -460,8 +454,6 @@ class Scenario:
     def _metadata(
         self, hosts: dict[str, BlockHost], parameters: dict[str, dict[str, Any]], system: System
     ) -> dict[str, Any]:
-        from cosim import provenance
-
         record = system.record or [
             (b, v.name)
             for b, h in hosts.items()
@@ -619,7 +611,7 @@ def load_scenario(path: str | Path) -> Scenario:
             step=parse_seconds(master["step"], f, "master.step"),
             stop=parse_seconds(master["stop"], f, "master.stop"),
             start=parse_seconds(master.get("start", 0.0), f, "master.start"),
-            coupling=str(master.get("coupling", GAUSS_SEIDEL)).lower().replace("_", "-"),
+            coupling=master.get("coupling", GAUSS_SEIDEL),
             record_every=output.get("every", 1),
         )
     except ScenarioError as exc:

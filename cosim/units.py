@@ -43,12 +43,13 @@ import numpy as np
 import pint
 
 from cosim.errors import UnitError
+from models.constants import G0, PPM
 
 _REG = pint.UnitRegistry()
-_REG.define("nav_g = 9.80665 * meter / second ** 2")
+_REG.define(f"nav_g = {G0!r} * meter / second ** 2")
 _REG.define("nav_mg = 1e-3 * nav_g")
 _REG.define("nav_ug = 1e-6 * nav_g")
-_REG.define("nav_ppm = 1e-6")
+_REG.define(f"nav_ppm = {PPM!r}")
 
 _TOKENS = {"g": "nav_g", "mg": "nav_mg", "ug": "nav_ug", "µg": "nav_ug", "ppm": "nav_ppm"}
 _WORD = re.compile(r"(?<![\w.])(µg|ug|mg|g|ppm)(?![\w(])")
@@ -158,7 +159,7 @@ def parse_unit(text: str) -> Unit:
             f"deg/sqrt(h), ug, ug/sqrt(Hz), m/s2, s, ms)"
         ) from exc
     dims = dict(q.dimensionality)
-    angle = dict(q.units._units).get("radian", 0.0)
+    angle = dict(q.unit_items()).get("radian", 0.0)
     if angle:
         dims["[angle]"] = angle
     dimension = tuple(sorted((k, float(e)) for k, e in dims.items() if e))

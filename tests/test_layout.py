@@ -1,0 +1,374 @@
+"""The package layout holds: arrows point down, modules stay small, privacy is kept.
+
+Checked by reading the sources (``ast``), not by importing them, except the one test
+that runs the demo in a fresh interpreter to see what it actually imports.
+
+- The core (``cosim/__init__``, ``scenario``, ``master``, ``blocks``, ``units``,
+  ``results``, ``errors``, ``provenance``, ``registry``) imports nothing from the packages
+  above it: it finds their blocks through the registry's entry points.
+- No module of ``cosim/``, ``models/`` or ``benchmarks/`` is over 800 lines
+  (``benchmarks/monolithic.py``, the hand-written reference, is excepted).
+- No module uses a private name (``_x``) of another module of the project: not by
+  ``from m import _x``, not as ``m._x``, not as ``obj._x`` on an object whose class
+  lives elsewhere (a private attribute is used only in the module that defines it).
+- No file of the project names a path outside the repository (a user's clone has only
+  the repository).
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import os
+import re
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+#: The core's modules (DESIGN: master, hosts, scenario, units, results, errors, ...).
+CORE = [
+    "cosim/__init__.py",
+    "cosim/scenario.py",
+    "cosim/master.py",
+    "cosim/blocks.py",
+    "cosim/units.py",
+    "cosim/results.py",
+    "cosim/errors.py",
+    "cosim/provenance.py",
+    "cosim/registry.py",
+]
+#: The packages above the core, and the command line on top of everything.
+ABOVE = (
+    "cosim.estimation",
+    "cosim.alignment",
+    "cosim.verify",
+    "cosim.interop",
+    "cosim.reproduce",
+    "cosim.cli",
+)
+MAX_LINES = 800
+LONG_ALLOWED = {"benchmarks/monolithic.py"}
+#: Top-level packages of the project; the modules of tests/ count too.
+PROJECT = ("cosim", "models", "benchmarks")
+#: What a clone does not have: generated or installed folders.
+NOT_SOURCES = {".git", ".venv", "out", "build", "results", "__pycache__", ".pytest_cache"}
+NOT_SOURCES |= {".ruff_cache"}
+
+# Other helpers are still splitting the long modules, making the private names public
+# and moving the paper references into the README; the integrator drops these marks.
+PENDING = "issue 13 in progress: other packages are still being cut"
+
+
+def python_files(*folders: str) -> list[Path]:
+    """The ``.py`` files under the given top-level folders of the repository.
+
+    Parameters
+    ----------
+    *folders : str
+        Folder names relative to the repository root (``"cosim"``, ``"tests"``).
+
+    Returns
+    -------
+    list of Path
+        Sorted, caches excluded.
+    """
+    return sorted(
+        p
+        for folder in folders
+        for p in (ROOT / folder).rglob("*.py")
+        if not NOT_SOURCES.intersection(p.relative_to(ROOT).parts)
+    )
+
+
+def module_name(path: Path) -> str:
+    """Dotted module name of a file (a test module is named by its stem, as pytest does).
+
+    Parameters
+    ----------
+    path : Path
+        A ``.py`` file of the repository.
+
+    Returns
+    -------
+    str
+        ``cosim/verify/campaign.py`` -> ``cosim.verify.campaign``; ``cosim/__init__.py``
+        -> ``cosim``; ``tests/testblocks.py`` -> ``testblocks`` (a file outside the
+        repository is named by its stem too).
+    """
+    if not path.is_relative_to(ROOT) or path.relative_to(ROOT).parts[0] == "tests":
+        return path.stem
+    rel = path.relative_to(ROOT)
+    parts = list(rel.with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+@dataclass(frozen=True)
+class Imported:
+    """One name an import statement brings in.
+
+    Attributes
+    ----------
+    target : str
+        The full dotted name (``cosim.blocks`` for ``from cosim import blocks``,
+        ``cosim.blocks.REAL`` for ``from cosim.blocks import REAL``).
+    bound : str
+        The local name it is bound to (empty for a plain ``import a.b``, which binds ``a``).
+    line : int
+        Line of the statement.
+    """
+
+    target: str
+    bound: str
+    line: int
+
+
+def imports(path: Path) -> list[Imported]:
+    """Every import of a module, at any depth (functions' lazy imports included).
+
+    Parameters
+    ----------
+    path : Path
+        The module's file.
+
+    Returns
+    -------
+    list of Imported
+        Relative imports resolved against the module's package; a constant
+        ``importlib.import_module("a.b")`` call counts as an import of ``a.b``.
+    """
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    me = module_name(path)
+    package = me if path.name == "__init__.py" else me.rpartition(".")[0]
+    found: list[Imported] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for alias in node.names:
+                found.append(Imported(alias.name, alias.asname or "", node.lineno))
+        elif isinstance(node, ast.ImportFrom):
+            module = node.module or ""
+            if node.level:
+                base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                module = ".".join(base + ([module] if module else []))
+            for alias in node.names:
+                bound = alias.asname or alias.name
+                found.append(Imported(f"{module}.{alias.name}", bound, node.lineno))
+        elif (
+            isinstance(node, ast.Call)
+            and isinstance(node.func, ast.Attribute)
+            and node.func.attr == "import_module"
+            and node.args
+            and isinstance(node.args[0], ast.Constant)
+            and isinstance(node.args[0].value, str)
+        ):
+            found.append(Imported(node.args[0].value, "", node.lineno))
+    return found
+
+
+def _within(name: str, package: str) -> bool:
+    return name == package or name.startswith(package + ".")
+
+
+def test_core_imports_nothing_above_it() -> None:
+    offenders = [
+        f"{rel}:{imp.line}: {imp.target}"
+        for rel in CORE
+        for imp in imports(ROOT / rel)
+        if any(_within(imp.target, above) for above in ABOVE)
+    ]
+    assert not offenders, "the core imports packages above it:\n" + "\n".join(offenders)
+
+
+def test_the_core_imports_only_itself_and_the_models_at_run_time() -> None:
+    """Loading and running the demo in a fresh interpreter imports no package above the core."""
+    code = (
+        "import json, sys, cosim\n"
+        "cosim.run('scenarios/demo.toml', stop=0.1)\n"
+        "print(json.dumps(sorted(m for m in sys.modules if m.startswith('cosim'))))\n"
+    )
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, env=env, capture_output=True, text=True
+    )
+    assert proc.returncode == 0, proc.stderr
+    loaded = json.loads(proc.stdout.splitlines()[-1])
+    above = [m for m in loaded if any(_within(m, a) for a in ABOVE)]
+    assert not above, f"running a truth-model scenario imported {above}"
+    assert "cosim.registry" in loaded
+
+
+def test_the_checker_resolves_imports() -> None:
+    folder = ROOT / "cosim"
+    sample = folder / "scenario.py"
+    targets = {i.target for i in imports(sample)}
+    assert {"cosim.registry", "cosim.master.Master", "tomllib"} <= targets
+    assert module_name(folder / "__init__.py") == "cosim"
+    assert module_name(ROOT / "tests" / "testblocks.py") == "testblocks"
+
+
+@pytest.mark.xfail(reason=PENDING, strict=False)
+def test_no_module_is_over_800_lines() -> None:
+    too_long = []
+    for path in python_files("cosim", "models", "benchmarks"):
+        rel = path.relative_to(ROOT).as_posix()
+        n = len(path.read_text(encoding="utf-8").splitlines())
+        if n > MAX_LINES and rel not in LONG_ALLOWED:
+            too_long.append(f"{rel}: {n} lines")
+    assert not too_long, f"modules over {MAX_LINES} lines:\n" + "\n".join(too_long)
+
+
+def _is_private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
+def _project_modules() -> set[str]:
+    return {module_name(p) for p in python_files(*PROJECT, "tests")}
+
+
+def _is_project(name: str, modules: set[str]) -> bool:
+    return name.split(".")[0] in PROJECT or name.split(".")[0] in modules
+
+
+def _own_private_names(tree: ast.AST) -> set[str]:
+    """Private names a module defines: functions, classes, attributes it assigns."""
+    names: set[str] = set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+            names.add(node.name)
+        elif isinstance(node, ast.Attribute) and isinstance(node.ctx, ast.Store):
+            names.add(node.attr)
+        elif isinstance(node, ast.Name) and isinstance(node.ctx, ast.Store):
+            names.add(node.id)
+        elif isinstance(node, ast.arg):
+            names.add(node.arg)
+    return {n for n in names if _is_private(n)}
+
+
+def private_uses(path: Path, modules: set[str]) -> list[str]:
+    """Where a module uses a private name that another module of the project defines.
+
+    Parameters
+    ----------
+    path : Path
+        The module's file.
+    modules : set of str
+        Names of the project's modules (the test modules by stem).
+
+    Returns
+    -------
+    list of str
+        ``file:line: what`` per offence: ``from m import _x``; ``m._x`` on a module (or an
+        object imported from one) of the project; ``obj._x`` on a local object when the
+        module itself defines no ``_x`` (the attribute belongs to a class elsewhere).
+    """
+    me = module_name(path)
+    rel = path.relative_to(ROOT).as_posix() if path.is_relative_to(ROOT) else path.name
+    tree = ast.parse(path.read_text(encoding="utf-8"))
+    bound: dict[str, str] = {}
+    found: list[str] = []
+    for imp in imports(path):
+        module, _, last = imp.target.rpartition(".")
+        if imp.bound and _is_private(last) and _is_project(module, modules) and module != me:
+            found.append(f"{rel}:{imp.line}: from {module} import {last}")
+        if imp.bound:
+            bound[imp.bound] = imp.target
+        else:
+            bound[imp.target.split(".")[0]] = imp.target.split(".")[0]
+    own = _own_private_names(tree)
+    for node in ast.walk(tree):
+        if not (isinstance(node, ast.Attribute) and _is_private(node.attr)):
+            continue
+        chain: list[str] = []
+        value = node.value
+        while isinstance(value, ast.Attribute):
+            chain.append(value.attr)
+            value = value.value
+        if not isinstance(value, ast.Name) or value.id in ("self", "cls"):
+            continue
+        if value.id in bound:
+            full = ".".join([bound[value.id], *reversed(chain)])
+            if _is_project(full, modules) and not _within(full, me):
+                found.append(f"{rel}:{node.lineno}: {full}.{node.attr}")
+        elif node.attr not in own:
+            found.append(f"{rel}:{node.lineno}: {value.id}.{node.attr} (defined elsewhere)")
+    return found
+
+
+def test_the_private_name_checker_finds_each_kind(tmp_path: Path) -> None:
+    sample = tmp_path / "layout_sample.py"
+    sample.write_text(
+        "import cosim.blocks\n"
+        "from cosim.blocks import _hidden\n"
+        "from cosim import master as m\n"
+        "def f(upf, obj):\n"
+        "    obj._mine = 1\n"
+        "    return cosim.blocks._a, m._b, upf._f, obj._mine\n"
+    )
+    found = [f.split(": ", 1)[1] for f in private_uses(sample, {"layout_sample"})]
+    assert found == [
+        "from cosim.blocks import _hidden",
+        "cosim.blocks._a",
+        "cosim.master._b",
+        "upf._f (defined elsewhere)",
+    ]
+
+
+@pytest.mark.xfail(reason=PENDING, strict=False)
+def test_no_private_name_crosses_modules() -> None:
+    modules = _project_modules()
+    offenders = [
+        offence
+        for path in python_files(*PROJECT, "tests")
+        for offence in private_uses(path, modules)
+    ]
+    assert not offenders, "private names used across modules:\n" + "\n".join(offenders)
+
+
+#: A path a clone does not have: the project's planning folder, or an absolute path of
+#: the machine it was written on.
+OUTSIDE = re.compile(r"\bshared/[A-Z]\w*\.md\b|(?<![\w.~-])/(?:work|tmp|home|root|Users)/\w")
+TEXT_SUFFIXES = {".py", ".md", ".toml", ".txt", ".cfg", ".ini", ".yml", ".yaml", ".c", ".h"}
+TEXT_NAMES = {"Makefile", "run"}
+
+
+def project_text_files() -> list[Path]:
+    """The repository's text files (sources, docs, scenarios, build files).
+
+    Returns
+    -------
+    list of Path
+        Sorted; generated and installed folders are left out.
+    """
+    found = []
+    for folder, subfolders, files in os.walk(ROOT):
+        subfolders[:] = [
+            d for d in subfolders if d not in NOT_SOURCES and not d.endswith(".egg-info")
+        ]
+        found += [
+            Path(folder) / f for f in files if Path(f).suffix in TEXT_SUFFIXES or f in TEXT_NAMES
+        ]
+    return sorted(found)
+
+
+def test_the_outside_path_pattern() -> None:
+    assert OUTSIDE.search("see shared/" + "SEEDS.md for the papers")
+    assert OUTSIDE.search("written to /" + "tmp/coord/notes.md")
+    assert not OUTSIDE.search("fmus/build/GaussMarkov2.fmu and ../fmus/build")
+    assert not OUTSIDE.search("tests/fixtures/fmi3_ramp and out/demo/results.csv")
+
+
+@pytest.mark.xfail(reason=PENDING, strict=False)
+def test_no_file_names_a_path_outside_the_repository() -> None:
+    offenders = []
+    for path in project_text_files():
+        for i, line in enumerate(path.read_text(encoding="utf-8", errors="replace").splitlines()):
+            match = OUTSIDE.search(line)
+            if match:
+                offenders.append(f"{path.relative_to(ROOT)}:{i + 1}: {match.group(0)}")
+    assert not offenders, "paths outside the repository:\n" + "\n".join(offenders)
