@@ -41,7 +41,7 @@ import numpy as np
 from scipy.signal import lfilter
 
 from models.conventions import cross, dcm_to_euler, euler_to_dcm, rotvec_to_dcm_and_jacobian
-from models.deck_flexure import _noise_factor, discretize_flexure
+from models.deck_flexure import discretize_flexure, noise_factor
 from models.earth import euler_motion_truth, omega_ie_n
 from models.lever_arm import r0_matrix
 from models.step_paths import simpson_nodes, substeps
@@ -263,7 +263,7 @@ def _flexure(p: dict[str, Any], h: float, n_steps: int) -> dict[str, np.ndarray]
     for b, qq in zip(beta, q, strict=True):
         phi, qd = discretize_flexure(float(b), float(qq), h)
         phis.append(phi)
-        roots.append(_noise_factor(qd))
+        roots.append(noise_factor(qd))
     trans = np.array(phis)
     trans[:, :, 0] = 0.0  # the integral I restarts at 0 in every step
     c = np.empty((n_steps + 1, 3, 3))

@@ -93,8 +93,23 @@ def discretize_flexure(beta: float, q: float, h: float) -> tuple[np.ndarray, np.
     return phi, 0.5 * (qd + qd.T)
 
 
-def _noise_factor(qd: np.ndarray) -> np.ndarray:
-    """``L`` with ``L L^T = qd``: Cholesky of the correlation matrix, rescaled."""
+def noise_factor(qd: np.ndarray) -> np.ndarray:
+    """A square root ``L`` of a noise covariance, ``L @ L.T = qd``, that tolerates tiny steps.
+
+    The eigen-decomposition of the correlation matrix, rescaled by the standard
+    deviations: the entries of ``qd`` of :func:`discretize_flexure` span many decades
+    for small steps, the correlation matrix does not.
+
+    Parameters
+    ----------
+    qd : ndarray, shape (n, n)
+        Symmetric positive semi-definite covariance (units of the state squared).
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+        ``L`` (units of the state); all zeros when a diagonal entry of ``qd`` is not > 0.
+    """
     d = np.sqrt(np.clip(np.diag(qd), 0.0, None))
     if not np.all(d > 0.0):
         return np.zeros_like(qd)
@@ -150,7 +165,7 @@ class DeckFlexure(Block):
             for beta, q in zip(self._beta, self._q, strict=True):
                 phi, qd = discretize_flexure(float(beta), float(q), h)
                 phis.append(phi)
-                roots.append(_noise_factor(qd))
+                roots.append(noise_factor(qd))
             self._cache = (h, np.array(phis), np.array(roots))
         return self._cache[1], self._cache[2]
 
