@@ -78,10 +78,10 @@ def fmu_dir(models: list[str]) -> Path:
         return FMU_DIR
     out = FMU_DIR / "bench"
     if not fresh(out):
-        import models as registry
         from cosim.interop.packaging import build_fmu
+        from cosim.registry import truth_models
 
-        classes = registry.registry()
+        classes = truth_models()
         for name in models:
             build_fmu(classes[name], out)
     return out

@@ -43,7 +43,8 @@ def run(scenario: Scenario | str | Path, **overrides: object) -> RunResult:
     scenario : Scenario, str or Path
         A loaded scenario or the path of its TOML file.
     **overrides
-        Master settings to override (``stop``, ``step``, ``coupling``, ``record_every``).
+        Master settings to override (``step``, ``stop``, ``start``, ``coupling``,
+        ``record_every``; see :meth:`Scenario.master_settings`).
 
     Returns
     -------
@@ -57,11 +58,10 @@ def run(scenario: Scenario | str | Path, **overrides: object) -> RunResult:
     SimulationError
         When a block fails or outputs a non-finite value; ``error.result`` keeps what
         was recorded up to then.
+    TypeError
+        An override that is not a master setting.
     """
-    try:
-        master = build_master(scenario, **overrides)
-    except TypeError as exc:
-        raise TypeError(f"run() got an unexpected override: {exc}") from None
+    master = build_master(scenario, **overrides)
     try:
         return master.run()
     finally:

@@ -191,3 +191,17 @@ def test_jacobi_initialisation_passes_zero_for_outputs_without_start() -> None:
     d = Master(system, MasterSettings(H, 1.05, start=1.0, coupling=JACOBI)).run().data
     assert d["sink.y"][0] == 0.0  # no start value: the sink is initialised with 0.0
     np.testing.assert_allclose(d["sink.y"][1:], d["src.y"][:-1], rtol=0, atol=1e-15)
+
+
+def test_settings_normalise_the_coupling_once_and_overrides_keep_the_checks() -> None:
+    s = MasterSettings(0.1, 1.0, coupling="Gauss_Seidel")
+    assert s.coupling == "gauss-seidel" and s.n_steps == 10
+    assert MasterSettings(0.1, 1.0, coupling="JACOBI").coupling == JACOBI
+    # an override is a new object, derived and checked again by the same code
+    longer = dataclasses.replace(s, stop=2.0)
+    assert longer.n_steps == 20 and s.n_steps == 10 and longer.coupling == "gauss-seidel"
+    with pytest.raises(ScenarioError, match="expected 'gauss-seidel' or 'jacobi'") as info:
+        MasterSettings(0.1, 1.0, coupling="seidel")
+    assert info.value.key == "master.coupling"
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        s.step = 0.2  # type: ignore[misc]

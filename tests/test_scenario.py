@@ -10,9 +10,9 @@ import pytest
 
 import cosim
 from cosim.errors import ScenarioError
+from models.constants import ARCMIN, DEG
 
 ROOT = Path(__file__).resolve().parents[1]
-ARCMIN = math.pi / 180 / 60
 
 
 def write(tmp_path: Path, text: str) -> Path:
@@ -55,11 +55,10 @@ class = "testblocks:Vec"
 
 def test_vector_connections_expand_element_by_element(tmp_path: Path) -> None:
     result = cosim.run(write(tmp_path, VEC))
-    deg = math.pi / 180
-    np.testing.assert_allclose(result["a.y"][-1], [2 * deg, 4 * deg, 6 * deg], rtol=1e-15)
+    np.testing.assert_allclose(result["a.y"][-1], [2 * DEG, 4 * DEG, 6 * DEG], rtol=1e-15)
     np.testing.assert_allclose(result["b.y"][-1], result["a.y"][-1], rtol=0)
     # a single element wired explicitly: c.u[1] <- b.y[2]; the others keep their start
-    np.testing.assert_allclose(result["c.y"][-1], [4 * deg, 0.0, 0.0], rtol=1e-15)
+    np.testing.assert_allclose(result["c.y"][-1], [4 * DEG, 0.0, 0.0], rtol=1e-15)
     assert result["a.y"].shape == (4, 3)
 
 
@@ -101,3 +100,19 @@ def test_record_selection_and_interval(tmp_path: Path) -> None:
 def test_unknown_top_level_key(tmp_path: Path) -> None:
     with pytest.raises(ScenarioError, match="unknown key 'mastre'.*Did you mean 'master'"):
         cosim.load_scenario(write(tmp_path, VEC + "[mastre]\nstep = 1\n"))
+
+
+def test_run_refuses_an_override_that_is_not_a_master_setting() -> None:
+    with pytest.raises(TypeError, match="unknown master setting 'stpo'"):
+        cosim.run(ROOT / "scenarios" / "demo.toml", stpo="1 s")
+
+
+def test_overrides_are_parsed_like_the_file_and_leave_the_scenario_alone() -> None:
+    sc = cosim.load_scenario(ROOT / "scenarios" / "demo.toml")
+    settings = sc.master_settings(stop="2 min", coupling="Jacobi", step=None)
+    assert (settings.stop, settings.step, settings.coupling) == (120.0, 0.01, "jacobi")
+    assert settings.n_steps == 12000 and sc.settings.coupling == "gauss-seidel"
+    assert sc.master_settings() is sc.settings
+    with pytest.raises(ScenarioError, match="not a whole positive number") as info:
+        sc.master_settings(stop="1.005 s")
+    assert info.value.file == str(sc.path) and info.value.key == "master.stop"

@@ -1,15 +1,13 @@
-"""Unit parsing and conversion (cosim.units), against hand-computed factors."""
+"""Unit parsing and conversion (cosim.units), against hand-computed factors and the
+project's constants (models.constants): a scenario's "2 arcmin" is the models' 2 * ARCMIN."""
 
 from __future__ import annotations
-
-import math
 
 import pytest
 
 from cosim.errors import UnitError
 from cosim.units import conversion_factor, parse_unit, to_unit
-
-DEG = math.pi / 180.0
+from models.constants import ARCMIN, ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, G0, PPM
 
 
 @pytest.mark.parametrize(
@@ -17,9 +15,15 @@ DEG = math.pi / 180.0
     [
         ("deg", "rad", DEG),
         ("arcmin", "rad", DEG / 60),
+        ("arcmin", "rad", ARCMIN),
         ("arcsec", "rad", DEG / 3600),
+        ("arcsec", "rad", ARCSEC),
         ("deg/h", "rad/s", DEG / 3600),
+        ("deg/h", "rad/s", DEG_PER_HOUR),
         ("deg/sqrt(h)", "rad/sqrt(s)", DEG / 60),
+        ("deg/sqrt(h)", "rad/sqrt(s)", DEG_PER_SQRT_HOUR),
+        ("g", "m/s2", G0),
+        ("ppm", "1", PPM),
         ("ug", "m/s2", 9.80665e-6),
         ("mg", "m/s2", 9.80665e-3),
         ("g", "m/s2", 9.80665),
