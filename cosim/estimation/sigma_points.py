@@ -284,9 +284,14 @@ class SigmaPointSampler:
             if hasattr(points, name) and not callable(getattr(points, name))
         ]
         if missing:
+            what = (
+                f"class {points.__name__} (pass an instance)"
+                if isinstance(points, type)
+                else type(points).__name__
+            )
             raise EstimatorTypeError(
                 "points: expected a sigma-point object with n, Wm, Wc, num_sigmas() and "
-                f"sigma_points(x, P), got {type(points).__name__} without {', '.join(missing)}"
+                f"sigma_points(x, P), got {what} without {', '.join(missing)}"
             )
         if points.n != n:
             raise ShapeError(f"points: expected sigma points for n={n}, got n={points.n}")
