@@ -45,7 +45,7 @@ from models.deck_flexure import discretize_flexure, noise_factor
 from models.earth import euler_motion_truth, omega_ie_n
 from models.lever_arm import r0_matrix
 from models.step_paths import simpson_nodes, substeps
-from models.strapdown_imu import PRESETS, integrated_first_order
+from models.strapdown_imu import PRESETS, bias_step_coefficients
 
 HERE = Path(__file__).resolve().parent
 #: The chain's scenario file.
@@ -494,17 +494,9 @@ def _imu(
 
     bias_int = np.empty((n_steps, 2, 3))
     for s, pre in enumerate(("gyro", "accel")):
-        sigma, tau = res[f"{pre}_bi_sigma"], res[f"{pre}_bi_tau"]
-        if sigma > 0.0:
-            beta = 1.0 / tau
-            phi, g, chol = integrated_first_order(beta, h)
-            sq = sigma * math.sqrt(2.0 * beta)
-            l11, l21, l22 = sq * chol[0, 0], sq * chol[1, 0], sq * chol[1, 1]
-        else:
-            phi, g, l11, l21, l22 = 1.0, h, 0.0, 0.0, 0.0
-        _, _, chol = integrated_first_order(0.0, h)
-        k = res[f"{pre}_rrw"]
-        r11, r21, r22 = k * chol[0, 0], k * chol[1, 0], k * chol[1, 1]
+        (phi, g, l11, l21, l22), (r11, r21, r22) = bias_step_coefficients(
+            res[f"{pre}_bi_sigma"], res[f"{pre}_bi_tau"], res[f"{pre}_rrw"], h
+        )
         zs = z[:, s]
         # Gauss-Markov state at each step start: gm_{n+1} = phi gm_n + l11 z1_n
         after = lfilter([1.0], [1.0, -phi], l11 * zs[:, 1], axis=0, zi=(phi * gm0[s])[None, :])[0]

@@ -304,6 +304,25 @@ def dcm_to_euler(c: ArrayLike) -> np.ndarray:
     return vec3(roll, pitch, yaw)
 
 
+def dcm_to_euler_3(c: np.ndarray) -> np.ndarray:
+    """:func:`dcm_to_euler` of one DCM with scalar math (fast path).
+
+    Parameters
+    ----------
+    c : ndarray, shape (3, 3)
+        ``C_b_n``.
+
+    Returns
+    -------
+    ndarray, shape (3,)
+        ``[roll, pitch, yaw]`` [rad]; roll and yaw in (-pi, pi], pitch in [-pi/2, pi/2].
+    """
+    (c00, _, _), (c10, _, _), (c20, c21, c22) = c.tolist()
+    return np.array(
+        [math.atan2(c21, c22), math.atan2(-c20, math.hypot(c21, c22)), math.atan2(c10, c00)]
+    )
+
+
 def euler_rate_to_body_rate(rpy: ArrayLike, rpy_dot: ArrayLike) -> np.ndarray:
     """Body rate relative to the navigation frame from Euler-angle rates.
 

@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from models.block import output
+from models.block import Var, input_, output
 from models.constants import E2, GAMMA_E, K_SOMIGLIANA, M_RATIO, OMEGA_IE, A, F
 from models.conventions import (
     cross,
@@ -226,6 +226,29 @@ MOTION_OUTPUTS = (
     output("dtheta_b", (0.0, 0.0, 0.0), "rad", "integral of omega_ib_b over the step"),
     output("dv_b", (0.0, 0.0, 0.0), "m/s", "integral of f_b over the step"),
 )
+
+
+def motion_inputs(names: tuple[str, ...], source: str) -> tuple[Var, ...]:
+    """Inputs that take the :data:`MOTION_OUTPUTS` of the same names from a motion block.
+
+    Parameters
+    ----------
+    names : tuple of str
+        Names of motion outputs, in the order the inputs are declared.
+    source : str
+        What the motion block is to this block (``"base"``, ``"master"``): it leads each
+        input's description.
+
+    Returns
+    -------
+    tuple of Var
+        One input per name, with the output's start value and unit.
+    """
+    by_name = {v.name: v for v in MOTION_OUTPUTS}
+    return tuple(
+        input_(n, by_name[n].start, by_name[n].unit, f"{source}: {by_name[n].description}")
+        for n in names
+    )
 
 
 def euler_motion_truth(

@@ -64,7 +64,14 @@ import numpy as np
 
 from models.block import Block, input_, output, parameter
 from models.constants import DEG, OMEGA_IE
-from models.conventions import cross, euler_to_dcm, euler_to_dcm_3, rotvec_to_dcm_and_jacobian
+from models.conventions import (
+    cross,
+    dcm_to_euler_3,
+    euler_to_dcm,
+    euler_to_dcm_3,
+    rotvec_to_dcm_and_jacobian,
+)
+from models.earth import motion_inputs
 from models.step_paths import (
     StepPath,
     hermite_basis,
@@ -101,14 +108,9 @@ class LeverArm(Block):
         parameter("mount_rpy", (1.0 * DEG, 1.0 * DEG, 30.0 * DEG), "rad", "slave mounting C_s_d"),
         parameter("flexure", 1, description="1: use the flexure inputs, 0: rigid deck"),
         parameter("dt_truth", 1.0e-3, "s", "inner integration step"),
-        input_("omega_ib_b", (0.0, 0.0, 0.0), "rad/s", "master rate w.r.t. inertial"),
-        input_("omega_dot_b", (0.0, 0.0, 0.0), "rad/s2", "master angular acceleration"),
-        input_("f_b", (0.0, 0.0, 0.0), "m/s2", "master specific force"),
-        input_("dtheta_b", (0.0, 0.0, 0.0), "rad", "master angle increment over the step"),
-        input_("dv_b", (0.0, 0.0, 0.0), "m/s", "master velocity increment over the step"),
-        input_("rpy", (0.0, 0.0, 0.0), "rad", "master attitude (roll, pitch, yaw of C_b_n)"),
-        input_("v_n", (0.0, 0.0, 0.0), "m/s", "master velocity, NED"),
-        input_("lat", 0.0, "rad", "master latitude"),
+        *motion_inputs(
+            ("omega_ib_b", "omega_dot_b", "f_b", "dtheta_b", "dv_b", "rpy", "v_n", "lat"), "master"
+        ),
         input_("theta", (0.0, 0.0, 0.0), "rad", "flexure angle"),
         input_("theta_dot", (0.0, 0.0, 0.0), "rad/s", "flexure rate"),
         input_("theta_ddot", (0.0, 0.0, 0.0), "rad/s2", "flexure acceleration (step-mean noise)"),
@@ -205,7 +207,7 @@ class LeverArm(Block):
         self.f_s = f_s.copy()
         c_b_n = euler_to_dcm_3(self.rpy)
         c_s_b = self._c_s_d if c_d_b is None else c_d_b @ self._c_s_d
-        self.rpy_s = _dcm_to_euler3(c_b_n @ c_s_b)
+        self.rpy_s = dcm_to_euler_3(c_b_n @ c_s_b)
         self.r_p = self._r0 + self._R0 @ th
         lat = float(self.lat)
         w_ie = np.array([OMEGA_IE * math.cos(lat), 0.0, -OMEGA_IE * math.sin(lat)])
@@ -289,11 +291,3 @@ class LeverArm(Block):
 
 #: Zero coefficient rows standing in for a path computed otherwise (fallback or rigid deck).
 _ZERO = {k: np.zeros((k, 3)) for k in (3, 4, 5)}
-
-
-def _dcm_to_euler3(c: np.ndarray) -> np.ndarray:
-    """:func:`models.conventions.dcm_to_euler` of one 3 x 3 DCM (scalar math)."""
-    (c00, _, _), (c10, _, _), (c20, c21, c22) = c.tolist()
-    return np.array(
-        [math.atan2(c21, c22), math.atan2(-c20, math.hypot(c21, c22)), math.atan2(c10, c00)]
-    )

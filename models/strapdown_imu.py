@@ -242,6 +242,47 @@ def _triad_parameters(p: str, q: str, rate: str, inc: str, white: str, white_uni
     )
 
 
+def bias_step_coefficients(
+    sigma: float, tau: float, rrw: float, h: float
+) -> tuple[tuple[float, float, float, float, float], tuple[float, float, float]]:
+    """Per-step coefficients of the Gauss-Markov and random-walk bias of one sensor triad.
+
+    Over a step the Gauss-Markov bias ``x_gm`` (stationary std ``sigma``, correlation
+    time ``tau``) and the random walk ``x_rw`` (density ``rrw``) advance as, with
+    standard normals ``z1 .. z4`` per axis (:func:`integrated_first_order`)::
+
+        x_gm(t + h) = phi x_gm(t) + l11 z1,   integral of x_gm = g x_gm(t) + l21 z1 + l22 z2
+        x_rw(t + h) = x_rw(t) + r11 z3,       integral of x_rw = h x_rw(t) + r21 z3 + r22 z4
+
+    Parameters
+    ----------
+    sigma : float
+        Gauss-Markov stationary std (rad/s or m/s2); ``<= 0``: no Gauss-Markov term.
+    tau : float
+        Its correlation time [s], > 0 when ``sigma > 0``.
+    rrw : float
+        Random-walk density (rad/s/sqrt(s) or m/s2/sqrt(s)), >= 0.
+    h : float
+        Step [s], > 0.
+
+    Returns
+    -------
+    gm : tuple of 5 float
+        ``(phi, g, l11, l21, l22)``; ``(1, h, 0, 0, 0)`` without a Gauss-Markov term.
+    rw : tuple of 3 float
+        ``(r11, r21, r22)``.
+    """
+    if sigma > 0.0:
+        beta = 1.0 / tau
+        phi, g, chol = integrated_first_order(beta, h)
+        sq = sigma * math.sqrt(2.0 * beta)
+        gm = (phi, g, sq * chol[0, 0], sq * chol[1, 0], sq * chol[1, 1])
+    else:
+        gm = (1.0, h, 0.0, 0.0, 0.0)
+    _, _, chol = integrated_first_order(0.0, h)
+    return gm, (rrw * chol[0, 0], rrw * chol[1, 0], rrw * chol[1, 1])
+
+
 class StrapdownImu(Block):
     """Strapdown IMU (gyro and accelerometer triads) with increment outputs."""
 
@@ -349,17 +390,9 @@ class StrapdownImu(Block):
         gm = np.zeros((2, 5))  # phi, g, l11, l21, l22 (scaled by sqrt(q))
         rw = np.zeros((2, 3))  # l11, l21, l22
         for s, p in enumerate(("gyro", "accel")):
-            sigma, tau = res[f"{p}_bi_sigma"], res[f"{p}_bi_tau"]
-            if sigma > 0.0:
-                beta = 1.0 / tau
-                phi, g, chol = integrated_first_order(beta, h)
-                sq = sigma * math.sqrt(2.0 * beta)
-                gm[s] = (phi, g, sq * chol[0, 0], sq * chol[1, 0], sq * chol[1, 1])
-            else:
-                gm[s, :2] = (1.0, h)
-            k = res[f"{p}_rrw"]
-            _, _, chol = integrated_first_order(0.0, h)
-            rw[s] = (k * chol[0, 0], k * chol[1, 0], k * chol[1, 1])
+            gm[s], rw[s] = bias_step_coefficients(
+                res[f"{p}_bi_sigma"], res[f"{p}_bi_tau"], res[f"{p}_rrw"], h
+            )
         self._gm_c = gm
         self._rw_c = rw
         self._white_h = self._white * math.sqrt(h)

@@ -52,9 +52,10 @@ import math
 
 import numpy as np
 
-from models.block import Block, input_, output, parameter
+from models.block import Block, output, parameter
 from models.constants import DEG
 from models.conventions import cross, dcm_to_euler, euler_to_dcm, vec3
+from models.earth import motion_inputs
 from models.step_paths import StepPath, simpson_nodes, substeps
 
 
@@ -74,12 +75,7 @@ class Turntable(Block):
         parameter("mount_rpy", (0.0, 0.0, 0.0), "rad", "sensor mounting on the table, C_s_t"),
         parameter("offset", (0.0, 0.0, 0.0), "m", "sensor position from the axis, table frame"),
         parameter("dt_truth", 1.0e-3, "s", "inner integration step"),
-        input_("omega_ib_b", (0.0, 0.0, 0.0), "rad/s", "base rate w.r.t. inertial, base axes"),
-        input_("omega_dot_b", (0.0, 0.0, 0.0), "rad/s2", "base angular acceleration (optional)"),
-        input_("f_b", (0.0, 0.0, 0.0), "m/s2", "base specific force"),
-        input_("dtheta_b", (0.0, 0.0, 0.0), "rad", "base angle increment over the step"),
-        input_("dv_b", (0.0, 0.0, 0.0), "m/s", "base velocity increment over the step"),
-        input_("rpy", (0.0, 0.0, 0.0), "rad", "base attitude (roll, pitch, yaw of C_b_n)"),
+        *motion_inputs(("omega_ib_b", "omega_dot_b", "f_b", "dtheta_b", "dv_b", "rpy"), "base"),
         output("omega_is_s", (0.0, 0.0, 0.0), "rad/s", "sensor rate w.r.t. inertial, sensor axes"),
         output("f_s", (0.0, 0.0, 0.0), "m/s2", "specific force at the sensor, sensor axes"),
         output("dtheta_s", (0.0, 0.0, 0.0), "rad", "integral of omega_is_s over the step"),

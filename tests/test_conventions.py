@@ -35,6 +35,15 @@ def test_euler_dcm_matches_scipy_intrinsic_zyx() -> None:
     np.testing.assert_allclose(cv.dcm_to_euler(ref), rpy, atol=1e-12)
 
 
+def test_scalar_fast_paths_match_the_array_functions() -> None:
+    for rpy in random_rpy(20):
+        c = cv.euler_to_dcm(rpy)
+        np.testing.assert_allclose(cv.euler_to_dcm_3(rpy), c, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(cv.dcm_to_euler_3(c), cv.dcm_to_euler(c), rtol=0, atol=1e-15)
+        phi = 0.3 * rpy
+        np.testing.assert_allclose(cv.rotvec_to_dcm_3(phi), cv.rotvec_to_dcm(phi), atol=1e-15)
+
+
 def test_euler_meaning() -> None:
     # Yaw 90 deg: body x (forward) points east. Pitch +10 deg: nose up (x has -D component).
     c = cv.euler_to_dcm([0.0, 0.0, math.pi / 2])
