@@ -1,8 +1,9 @@
 """Two-position HRG alignment filter: measurement model, filters, eq. (16)-(21), block logic.
 
 The UPF itself (one particle = UKF, unscented transform exact for linear maps,
-resampling keeps the weighted mean) is tested in tests/test_estimators.py
-(test_upf_with_one_particle_equals_the_ukf, test_unscented_transform_is_exact_for_linear_maps,
+resampling keeps the weighted mean) is tested in tests/test_particle.py and
+tests/test_unscented.py (test_upf_with_one_particle_equals_the_ukf,
+test_unscented_transform_is_exact_for_linear_maps,
 test_systematic_resample_is_unbiased_for_the_weighted_mean).
 """
 

@@ -1,6 +1,6 @@
 """Tests of the seed-001 transfer-alignment filter (cosim/alignment/transfer.py).
 
-The UKF itself is tested in tests/test_estimators.py (on a linear model the UKF equals the
+The UKF itself is tested in tests/test_unscented.py (on a linear model the UKF equals the
 linear KF, x and P to 1e-9 after each step: ``test_ukf_equals_kf_on_a_linear_model``);
 here: the error model against its linearisation and against the mechanisation, the
 strapdown and master-rate accuracy, the covariance analysis against the issue's figures,

@@ -12,6 +12,8 @@ from this package; the modules are cut by concern:
 ``unscented``             :func:`unscented_transform`, :class:`UnscentedKalmanFilter`
 ``particle``              :func:`systematic_resample`, :class:`UnscentedParticleFilter`
 ``analysis``              :func:`van_loan`, observability ranks, NEES/NIS, ANEES band
+``covariance``            the covariance-analysis loop on :func:`joseph_update` and its
+                          history (import from ``cosim.estimation.covariance``)
 ``angles``                residuals and means with angle components
 ``checks``, ``linalg``    argument checks, errors, batched linear algebra (internal tools)
 ``allan``                 Allan variance of sensor records
