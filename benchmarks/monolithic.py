@@ -40,10 +40,10 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from models.conventions import cross, dcm_to_euler, euler_to_dcm, rotvec_to_dcm_and_jacobian
+from models.conventions import cross, dcm_to_euler, euler_to_dcm
 from models.deck_flexure import discretize_flexure, noise_factor
 from models.earth import euler_motion_truth, omega_ie_n
-from models.lever_arm import r0_matrix
+from models.lever_arm import r0_matrix, slave_kinematics
 from models.step_paths import simpson_nodes, substeps
 from models.strapdown_imu import PRESETS, bias_step_coefficients
 
@@ -289,40 +289,6 @@ def _flexure(p: dict[str, Any], h: float, n_steps: int) -> dict[str, np.ndarray]
     }
 
 
-def _slave(
-    w: np.ndarray,
-    wd: np.ndarray,
-    f: np.ndarray,
-    th: np.ndarray,
-    thd: np.ndarray,
-    thdd: np.ndarray,
-    r0: np.ndarray,
-    r0m: np.ndarray,
-    c_s_d: np.ndarray,
-    flexure: bool,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Slave rate and specific force (slave axes) and ``C_d_b`` at (k, 3) inputs.
-
-    ``w, wd, f``: master rate [rad/s], angular acceleration [rad/s2], specific force
-    [m/s2] (master body axes); ``th, thd, thdd``: flexure angle [rad] and its first and
-    second derivatives. Returns ``w_s, f_s`` (k, 3) and ``c_d_b`` (k, 3, 3).
-    """
-    r = r0 + th @ r0m.T
-    f_p = (
-        f
-        + cross(wd, r)
-        + w * np.sum(w * r, axis=-1, keepdims=True)
-        - r * np.sum(w * w, axis=-1, keepdims=True)
-    )
-    if not flexure:
-        return w @ c_s_d, f_p @ c_s_d, np.broadcast_to(np.eye(3), (len(w), 3, 3))
-    f_p = f_p + 2.0 * cross(w, thd @ r0m.T) + thdd @ r0m.T
-    c_d_b, j_r = rotvec_to_dcm_and_jacobian(th)
-    w_d = np.einsum("ki,kij->kj", w, c_d_b) + np.einsum("kij,kj->ki", j_r, thd)
-    f_d = np.einsum("ki,kij->kj", f_p, c_d_b)
-    return w_d @ c_s_d, f_d @ c_s_d, c_d_b
-
-
 def _norm(x: np.ndarray) -> np.ndarray:
     """Euclidean norms along the last axis."""
     return np.sqrt(np.sum(x * x, axis=-1))
@@ -392,7 +358,7 @@ def _lever(
         th = thd = thdd = np.zeros_like(w)
 
     k = n_steps * m
-    w_s, f_s, _ = _slave(
+    w_s, f_s, _ = slave_kinematics(
         w.reshape(k, 3),
         wd.reshape(k, 3),
         f.reshape(k, 3),
@@ -400,7 +366,7 @@ def _lever(
         thd.reshape(k, 3),
         thdd.reshape(k, 3),
         r0,
-        r0m,
+        r0m.T,
         c_s_d,
         flexure,
     )
@@ -415,7 +381,7 @@ def _lever(
     th_e = flex["theta"] if flexure else zero
     thd_e = flex["theta_dot"] if flexure else zero
     thdd_e = flex["theta_ddot"] if flexure else zero
-    w_e, f_e, c_d_b = _slave(
+    w_e, f_e, c_d_b = slave_kinematics(
         ship["omega_ib_b"],
         ship["omega_dot_b"],
         ship["f_b"],
@@ -423,7 +389,7 @@ def _lever(
         thd_e,
         thdd_e,
         r0,
-        r0m,
+        r0m.T,
         c_s_d,
         True,
     )

@@ -100,6 +100,61 @@ def r0_matrix(r0: np.ndarray) -> np.ndarray:
     return np.array([[0.0, z0, 0.0], [0.0, 0.0, x0], [y0, 0.0, 0.0]])
 
 
+def slave_kinematics(
+    w: np.ndarray,
+    wd: np.ndarray,
+    f: np.ndarray,
+    th: np.ndarray,
+    thd: np.ndarray,
+    thdd: np.ndarray,
+    r0: np.ndarray,
+    r0_t: np.ndarray,
+    c_s_d: np.ndarray,
+    flexure: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """Slave rate and specific force (slave axes) and ``C_d_b`` at ``m`` instants at once.
+
+    The kinematics of the module docstring: ``r = r0 + R_0 theta``,
+    ``f_p = f + omega' x r + omega x (omega x r) [+ 2 omega x R_0 theta' + R_0 theta'']``,
+    resolved through ``C_d_b = exp([theta x])`` and the mounting ``C_s_d``.
+
+    Parameters
+    ----------
+    w, wd, f : ndarray, shape (m, 3)
+        Master rate [rad/s], angular acceleration [rad/s2] and specific force [m/s2],
+        master body axes.
+    th, thd, thdd : ndarray, shape (m, 3)
+        Flexure angle [rad] and its first [rad/s] and second [rad/s2] derivatives.
+    r0 : ndarray, shape (3,)
+        Lever arm master -> slave, master body axes [m].
+    r0_t : ndarray, shape (3, 3)
+        ``R_0.T`` (:func:`r0_matrix` transposed) [m/rad].
+    c_s_d : ndarray, shape (3, 3)
+        Slave mounting ``C_s_d``.
+    flexure : bool
+        False for a rigid deck: the flexure terms (and ``C_d_b``) are left out.
+
+    Returns
+    -------
+    w_s, f_s : ndarray, shape (m, 3)
+        Slave rate w.r.t. inertial [rad/s] and specific force [m/s2], slave axes.
+    c_d_b : ndarray, shape (m, 3, 3), or None for a rigid deck
+    """
+    r = r0 + th @ r0_t
+    # omega x (omega x r) = omega (omega . r) - r |omega|^2
+    wr = (w * r).sum(axis=-1, keepdims=True)
+    ww = (w * w).sum(axis=-1, keepdims=True)
+    f_p = f + cross(wd, r) + w * wr - r * ww
+    if not flexure:
+        return w @ c_s_d, f_p @ c_s_d, None
+    f_p = f_p + 2.0 * cross(w, thd @ r0_t) + thdd @ r0_t
+    c_d_b, j_r = rotvec_to_dcm_and_jacobian(th)
+    # [w, f_p] @ C_d_b in one batched product: rows (m, 2, 3)
+    wf = np.stack([w, f_p], axis=1) @ c_d_b
+    w_d = wf[:, 0, :] + (j_r @ thd[:, :, None])[:, :, 0]
+    return w_d @ c_s_d, wf[:, 1, :] @ c_s_d, c_d_b
+
+
 class LeverArm(Block):
     """Slave IMU on a lever arm with deck flexure and mounting misalignment (seed 001)."""
 
@@ -160,26 +215,10 @@ class LeverArm(Block):
         thd: np.ndarray,
         thdd: np.ndarray,
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """Slave rate and specific force (slave axes) and ``C_d_b``, from (m, 3) inputs.
-
-        Returns
-        -------
-        w_s, f_s : ndarray, shape (m, 3)
-        c_d_b : ndarray, shape (m, 3, 3), or None without flexure
-        """
-        r = self._r0 + th @ self._R0T
-        # omega x (omega x r) = omega (omega . r) - r |omega|^2
-        wr = (w * r).sum(axis=-1, keepdims=True)
-        ww = (w * w).sum(axis=-1, keepdims=True)
-        f_p = f + cross(wd, r) + w * wr - r * ww
-        if not self.flexure:
-            return w @ self._c_s_d, f_p @ self._c_s_d, None
-        f_p = f_p + 2.0 * cross(w, thd @ self._R0T) + thdd @ self._R0T
-        c_d_b, j_r = rotvec_to_dcm_and_jacobian(th)
-        # [w, f_p] @ C_d_b in one batched product: rows (m, 2, 3)
-        wf = np.stack([w, f_p], axis=1) @ c_d_b
-        w_d = wf[:, 0, :] + (j_r @ thd[:, :, None])[:, :, 0]
-        return w_d @ self._c_s_d, wf[:, 1, :] @ self._c_s_d, c_d_b
+        """:func:`slave_kinematics` with this block's lever arm, mounting and flexure switch."""
+        return slave_kinematics(
+            w, wd, f, th, thd, thdd, self._r0, self._R0T, self._c_s_d, bool(self.flexure)
+        )
 
     def _publish_end(self) -> None:
         """Outputs at the time of the current inputs (used at initialisation)."""
