@@ -58,6 +58,7 @@ Slave velocity (w.r.t. earth, master NED axes; ``omega_eb_b = omega - C_n_b omeg
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -188,6 +189,14 @@ class LeverArm(Block):
         self._R0 = r0_matrix(self._r0)
         self._R0T = self._R0.T.copy()
         self._c_s_d = euler_to_dcm(np.asarray(self.mount_rpy, dtype=float))
+        # the slave kinematics of this block: (w, wd, f, th, thd, thdd) -> (w_s, f_s, C_d_b)
+        self._slave = functools.partial(
+            slave_kinematics,
+            r0=self._r0,
+            r0_t=self._R0T,
+            c_s_d=self._c_s_d,
+            flexure=bool(self.flexure),
+        )
         self._nodes: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, int]] = {}
         self._w_path = StepPath()
         self._w_path.reset(self.start_time, self.omega_ib_b, self.omega_dot_b)
@@ -204,20 +213,6 @@ class LeverArm(Block):
             np.asarray(self.theta, dtype=float),
             np.asarray(self.theta_dot, dtype=float),
             np.asarray(self.theta_ddot, dtype=float),
-        )
-
-    def _slave(
-        self,
-        w: np.ndarray,
-        wd: np.ndarray,
-        f: np.ndarray,
-        th: np.ndarray,
-        thd: np.ndarray,
-        thdd: np.ndarray,
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
-        """:func:`slave_kinematics` with this block's lever arm, mounting and flexure switch."""
-        return slave_kinematics(
-            w, wd, f, th, thd, thdd, self._r0, self._R0T, self._c_s_d, bool(self.flexure)
         )
 
     def _publish_end(self) -> None:

@@ -231,6 +231,11 @@ def _library() -> ctypes.CDLL:
     return _LIBRARY
 
 
+def _per_type(lib: ctypes.CDLL, pattern: str) -> dict[int, Any]:
+    """The libcosimc function of each FMI type: ``pattern`` with ``{}`` -> real, integer, ..."""
+    return {kind: getattr(lib, pattern.format(name.lower())) for kind, name in _TYPE_NAMES.items()}
+
+
 def _last_error(lib: ctypes.CDLL) -> str:
     message = lib.cosim_last_error_message()
     return message.decode(errors="replace").strip() if message else "no message from libcosim"
@@ -423,12 +428,7 @@ def _set_initial_values(
     variables: Mapping[str, Mapping[str, tuple[int, int, str]]],
     parameters: Mapping[str, Mapping[str, Any]],
 ) -> None:
-    setters = {
-        _REAL: lib.cosim_execution_set_real_initial_value,
-        _INTEGER: lib.cosim_execution_set_integer_initial_value,
-        _BOOLEAN: lib.cosim_execution_set_boolean_initial_value,
-        _STRING: lib.cosim_execution_set_string_initial_value,
-    }
+    setters = _per_type(lib, "cosim_execution_set_{}_initial_value")
     for block, values in parameters.items():
         for var, value in values.items():
             vr, kind, causality = _lookup(variables, block, var, "parameters")
@@ -455,12 +455,7 @@ def _connect(
     variables: Mapping[str, Mapping[str, tuple[int, int, str]]],
     connections: Sequence[Sequence[str]],
 ) -> None:
-    connectors = {
-        _REAL: lib.cosim_execution_connect_real_variables,
-        _INTEGER: lib.cosim_execution_connect_integer_variables,
-        _BOOLEAN: lib.cosim_execution_connect_boolean_variables,
-        _STRING: lib.cosim_execution_connect_string_variables,
-    }
+    connectors = _per_type(lib, "cosim_execution_connect_{}_variables")
     for connection in connections:
         if len(connection) != 4:
             raise LibcosimError(
