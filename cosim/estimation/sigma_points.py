@@ -338,7 +338,10 @@ class SigmaPointSampler:
         fn = self.points.sigma_points
         if self._batched or (x.ndim == 1 and P.ndim == 2):
             sig = np.asarray(fn(x, P, **self._kw), dtype=float)
-            want = np.broadcast_shapes(x.shape[:-1], P.shape[:-2]) + (self.m, self.n)
+            lead = x.shape[:-1]
+            if P.shape[:-2] != lead:  # np.broadcast_shapes costs more than the points
+                lead = np.broadcast_shapes(lead, P.shape[:-2])
+            want = lead + (self.m, self.n)
             if sig.shape != want:
                 raise ShapeError(
                     f"points.sigma_points: expected output shape {want}, got {sig.shape}"
