@@ -37,7 +37,9 @@ Ring laser gyro option (``rlg_mode``): 0 generic gyro, 1 mechanically dithered R
 the random walk is divided by ``rlg_rw_reduction`` (default 10, seed 003). A
 rate-biased IMU sits on a turntable: the turntable rate and the centrifugal and
 tangential accelerations reach this block through its inputs and are measured like
-any other motion (scale factor and misalignment included); nothing is removed here.
+any other motion (scale factor and misalignment included); nothing is removed here
+(removing them with the encoder angle is the navigation software's job). Mode 1 is
+numerically identical to mode 0.
 
 Grades: ``grade`` 0 (custom) gives zero for every statistical parameter left unset,
 so a default instance is a perfect IMU; 1 (navigation) and 2 (tactical) fill in the
@@ -45,6 +47,7 @@ values of :data:`PRESETS`. A statistical parameter is *unset* when negative (sta
 value -1); any value >= 0 set by the user wins over the preset. (NaN would be the
 natural marker but is not a valid FMI start value.) Fixed values (``*_bias``,
 ``*_sf``, ``*_misalignment``) are never touched by the grade.
+:meth:`StrapdownImu.resolved_parameters` returns the values in force.
 
 Random numbers: ``numpy.random.default_rng(seed)``; at initialisation one (2, 18)
 block of standard normals (per triad: turn-on bias 3, scale factor 3, misalignment 9,

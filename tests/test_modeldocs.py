@@ -49,5 +49,5 @@ def test_rst_literal_blocks_and_roles_become_markdown() -> None:
     text = "Title\n-----\nSee :func:`models.conventions.cross` and ``x``::\n\n    x' = -x\n\nEnd."
     md = modeldocs.rst_to_markdown(text)
     assert md == (
-        "### Title\nSee `models.conventions.cross` and `x`:\n\n```\nx' = -x\n```\n\nEnd.\n"
+        "### Title\n\nSee `models.conventions.cross` and `x`:\n\n```\nx' = -x\n```\n\nEnd.\n"
     )
