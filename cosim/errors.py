@@ -7,7 +7,29 @@ non-zero code, without a traceback. Everything else is a bug and keeps its trace
 
 from __future__ import annotations
 
+import difflib
+from collections.abc import Iterable
 from typing import Any
+
+
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """The hint every "unknown name" message ends with: the closest known name, if any.
+
+    Parameters
+    ----------
+    name : str
+        What the user wrote.
+    known : iterable of str
+        The names that would have been accepted.
+
+    Returns
+    -------
+    str
+        ``" Did you mean 'x'?"`` (leading space included), or ``""`` when nothing is close
+        (:func:`difflib.get_close_matches`, its default cutoff 0.6).
+    """
+    hint = difflib.get_close_matches(name, list(known), n=1)
+    return f" Did you mean '{hint[0]}'?" if hint else ""
 
 
 class UserError(Exception):

@@ -23,13 +23,12 @@ the import error. The core never imports the packages above it (alignment, verif
 
 from __future__ import annotations
 
-import difflib
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
 
 import models
-from cosim.errors import ScenarioError
+from cosim.errors import ScenarioError, did_you_mean
 from models.block import Block
 
 #: Entry-point group of block classes (name in a scenario -> ``"module:Class"``).
@@ -159,8 +158,7 @@ def find_block(name: str) -> type[Block]:
         )
     if not registered:
         known = names()
-        hint = difflib.get_close_matches(name, known, n=1)
-        tip = f" Did you mean '{hint[0]}'?" if hint else ""
+        tip = did_you_mean(name, known)
         raise ScenarioError(
             f"unknown model '{name}'.{tip} Known models: {', '.join(known)} "
             f"(a package adds its own through the entry-point group '{GROUP}')"

@@ -32,7 +32,6 @@ Loading checks everything that can be checked without running: every problem is 
 from __future__ import annotations
 
 import dataclasses
-import difflib
 import hashlib
 import importlib
 import re
@@ -43,7 +42,7 @@ from typing import Any
 
 from cosim import provenance, registry
 from cosim.blocks import REAL, BlockHost, FmuHost, InProcessHost, Variable
-from cosim.errors import FmuError, ScenarioError, UnitError
+from cosim.errors import FmuError, ScenarioError, UnitError, did_you_mean
 from cosim.master import GAUSS_SEIDEL, Connection, Master, MasterSettings, System
 from cosim.units import conversion_factor, resolve_unit, to_unit
 
@@ -274,8 +273,7 @@ class Scenario:
                 settable = [
                     v.name for v in host.variables.values() if v.causality in ("parameter", "input")
                 ]
-                hint = difflib.get_close_matches(pname, _bases(settable), n=1)
-                tip = f" Did you mean '{hint[0]}'?" if hint else ""
+                tip = did_you_mean(pname, _bases(settable))
                 raise self.error(
                     f"block '{spec.name}' has no variable '{pname}'.{tip} "
                     f"Parameters and inputs: {', '.join(_bases(settable))}",
@@ -376,8 +374,7 @@ class Scenario:
         self, hosts: dict[str, BlockHost], block: str, var: str, causality: str, key: str, text: str
     ) -> list[Variable]:
         if block not in hosts:
-            hint = difflib.get_close_matches(block, hosts, n=1)
-            tip = f" Did you mean '{hint[0]}'?" if hint else ""
+            tip = did_you_mean(block, hosts)
             raise self.error(
                 f"'{text}': unknown block '{block}'.{tip} Blocks: {', '.join(hosts)}", key=key
             )
@@ -385,8 +382,7 @@ class Scenario:
         scalars = self._expand(host, var)
         if not scalars:
             names = _bases([v.name for v in host.by_causality(causality)])
-            hint = difflib.get_close_matches(var, names, n=1)
-            tip = f" Did you mean '{hint[0]}'?" if hint else ""
+            tip = did_you_mean(var, names)
             raise self.error(
                 f"'{text}': block '{block}' has no variable '{var}'.{tip} "
                 f"Its {causality}s: {', '.join(names) or 'none'}",
@@ -510,8 +506,7 @@ def _bases(names: list[str]) -> list[str]:
 def _check_keys(table: dict[str, Any], allowed: set[str], where: str, file: str) -> None:
     for k in table:
         if k not in allowed:
-            hint = difflib.get_close_matches(k, allowed, n=1)
-            tip = f" Did you mean '{hint[0]}'?" if hint else ""
+            tip = did_you_mean(k, allowed)
             if k in TOP_KEYS and where != "the top level":
                 tip = (
                     f" '{k}' is a top-level key: write it before the first [table] header "
