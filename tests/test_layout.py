@@ -505,3 +505,16 @@ def test_constants_come_from_models_constants_only() -> None:
     assert not offenders, "constants defined or taken outside models.constants:\n" + "\n".join(
         offenders
     )
+
+
+#: Besides Scenario.build: the model references drive one model alone, with no scenario.
+HOSTS_ALSO_MADE_IN = {"cosim/interop/references.py"}
+
+
+def test_scenario_build_is_where_blocks_are_instantiated() -> None:
+    places = {
+        path.relative_to(ROOT).as_posix()
+        for path in python_files("cosim")
+        if _calls(path, "InProcessHost") or _calls(path, "FmuHost")
+    }
+    assert places - HOSTS_ALSO_MADE_IN == {"cosim/scenario.py"}, sorted(places)
