@@ -45,7 +45,7 @@ from models.deck_flexure import discretize_flexure, noise_factor
 from models.earth import euler_motion_truth, omega_ie_n
 from models.lever_arm import r0_matrix, slave_kinematics
 from models.step_paths import simpson_nodes, substeps
-from models.strapdown_imu import PRESETS, bias_step_coefficients
+from models.strapdown_imu import bias_step_coefficients, resolve_parameters
 
 HERE = Path(__file__).resolve().parent
 #: The chain's scenario file.
@@ -412,35 +412,11 @@ def _hermite(u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return b0, b1
 
 
-def resolve_imu(p: dict[str, Any]) -> dict[str, float]:
-    """The IMU's statistical parameters after the grade preset (as the block resolves them).
-
-    Parameters
-    ----------
-    p : dict
-        StrapdownImu parameters (SI).
-
-    Returns
-    -------
-    dict
-        ``{name: value}`` for every graded parameter, plus ``gyro_arw_effective``.
-    """
-    grade = int(p["grade"])
-    out = {
-        name: (float(p[name]) if float(p[name]) >= 0.0 else v) for name, v in PRESETS[grade].items()
-    }
-    arw = out["gyro_arw"]
-    if int(p["rlg_mode"]) == 2:
-        arw /= float(p["rlg_rw_reduction"])
-    out["gyro_arw_effective"] = arw
-    return out
-
-
 def _imu(
     p: dict[str, Any], d_theta: np.ndarray, d_v: np.ndarray, h: float, n_steps: int
 ) -> dict[str, np.ndarray]:
     """StrapdownImu outputs at t0 and every step end from the true increments (N + 1, 3)."""
-    res = resolve_imu(p)
+    res = resolve_parameters(p)
     if res["gyro_lsb"] > 0.0 or res["accel_lsb"] > 0.0:
         raise ValueError("the monolithic reference does not model quantisation (*_lsb > 0)")
     rng = np.random.default_rng(int(p["seed"]))

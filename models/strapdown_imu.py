@@ -61,6 +61,7 @@ arithmetic as step by step.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -245,6 +246,56 @@ def _triad_parameters(p: str, q: str, rate: str, inc: str, white: str, white_uni
     )
 
 
+def resolve_parameters(values: Mapping[str, Any]) -> dict[str, float]:
+    """A StrapdownImu's statistical parameters after its grade preset, checked.
+
+    A graded parameter that is negative (unset) takes the preset's value; the
+    rate-biased RLG divides the ARW by ``rlg_rw_reduction``.
+
+    Parameters
+    ----------
+    values : mapping of str to float or int
+        The block's ``grade``, ``rlg_mode``, ``rlg_rw_reduction`` and every graded
+        parameter (the keys of :data:`PRESETS`), SI units.
+
+    Returns
+    -------
+    dict
+        ``{name: value}`` in SI units for every graded parameter, plus
+        ``gyro_arw_effective`` (the ARW after the rate-biased RLG reduction).
+
+    Raises
+    ------
+    ValueError
+        An unknown grade or RLG mode, a reduction <= 0 in mode 2, or a Gauss-Markov
+        sigma > 0 with a correlation time <= 0.
+    """
+    grade = int(values["grade"])
+    if grade not in PRESETS:
+        raise ValueError(f"StrapdownImu.grade must be 0, 1 or 2, got {grade}")
+    out: dict[str, float] = {}
+    for name, preset in PRESETS[grade].items():
+        value = float(values[name])
+        out[name] = value if value >= 0.0 else preset
+    mode = int(values["rlg_mode"])
+    if mode not in (0, 1, 2):
+        raise ValueError(f"StrapdownImu.rlg_mode must be 0, 1 or 2, got {mode}")
+    arw = out["gyro_arw"]
+    if mode == 2:
+        reduction = values["rlg_rw_reduction"]
+        if not reduction > 0.0:
+            raise ValueError(f"StrapdownImu.rlg_rw_reduction must be > 0, got {reduction}")
+        arw /= float(reduction)
+    out["gyro_arw_effective"] = arw
+    for p in ("gyro", "accel"):
+        if out[f"{p}_bi_sigma"] > 0.0 and not out[f"{p}_bi_tau"] > 0.0:
+            raise ValueError(
+                f"StrapdownImu.{p}_bi_tau must be > 0 when {p}_bi_sigma > 0, "
+                f"got {out[f'{p}_bi_tau']}"
+            )
+    return out
+
+
 def bias_step_coefficients(
     sigma: float, tau: float, rrw: float, h: float
 ) -> tuple[tuple[float, float, float, float, float], tuple[float, float, float]]:
@@ -312,7 +363,7 @@ class StrapdownImu(Block):
 
     # ------------------------------------------------------------ parameters
     def resolved_parameters(self) -> dict[str, float]:
-        """Statistical parameters after applying the grade preset.
+        """Statistical parameters after applying the grade preset (:func:`resolve_parameters`).
 
         Returns
         -------
@@ -320,31 +371,8 @@ class StrapdownImu(Block):
             ``{name: value}`` in SI units for every graded parameter, plus
             ``gyro_arw_effective`` (the ARW after the rate-biased RLG reduction).
         """
-        grade = int(self.grade)
-        if grade not in PRESETS:
-            raise ValueError(f"StrapdownImu.grade must be 0, 1 or 2, got {grade}")
-        out: dict[str, float] = {}
-        for name, preset in PRESETS[grade].items():
-            value = float(getattr(self, name))
-            out[name] = value if value >= 0.0 else preset
-        mode = int(self.rlg_mode)
-        if mode not in (0, 1, 2):
-            raise ValueError(f"StrapdownImu.rlg_mode must be 0, 1 or 2, got {mode}")
-        arw = out["gyro_arw"]
-        if mode == 2:
-            if not self.rlg_rw_reduction > 0.0:
-                raise ValueError(
-                    f"StrapdownImu.rlg_rw_reduction must be > 0, got {self.rlg_rw_reduction}"
-                )
-            arw /= float(self.rlg_rw_reduction)
-        out["gyro_arw_effective"] = arw
-        for p in ("gyro", "accel"):
-            if out[f"{p}_bi_sigma"] > 0.0 and not out[f"{p}_bi_tau"] > 0.0:
-                raise ValueError(
-                    f"StrapdownImu.{p}_bi_tau must be > 0 when {p}_bi_sigma > 0, "
-                    f"got {out[f'{p}_bi_tau']}"
-                )
-        return out
+        names = ("grade", "rlg_mode", "rlg_rw_reduction", *PRESETS[0])
+        return resolve_parameters({name: getattr(self, name) for name in names})
 
     # ------------------------------------------------------------ life cycle
     def initialize(self) -> None:
