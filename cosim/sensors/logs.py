@@ -1,0 +1,726 @@
+"""Recorded IMU logs: CSV, Parquet and HDF5 with unit-labelled columns, read in chunks.
+
+Format
+------
+One row per sample, a time column and the six sensor columns, each named with its unit
+in brackets (CSV header, Parquet column names; HDF5 as described below)::
+
+    time [s],gyro_x [deg/s],gyro_y [deg/s],gyro_z [deg/s],acc_x [m/s2],acc_y [m/s2],acc_z [m/s2]
+
+=============================  ==============================================================
+column                         meaning
+=============================  ==============================================================
+``time``                       sample time, any time unit (``s``, ``ms``, ``us``)
+``gyro_x`` .. ``gyro_z``       body axes x, y, z of the IMU case (``accel_`` and ``acc_`` are
+``acc_x`` .. ``acc_z``         both accepted for the accelerometers)
+=============================  ==============================================================
+
+The *unit* says what a sensor column holds: an angle (``rad``, ``deg``, ``arcsec``) or a
+velocity (``m/s``) is an **increment** over the sample interval; a rate (``deg/s``,
+``deg/h``) or a specific force (``m/s2``, ``g``, ``mg``) is the **mean over the interval**
+ending at the sample's time (what an IMU's integrating front end delivers). Any unit
+:mod:`cosim.units` knows is accepted; the three axes of a triad share one kind. Sample
+``k`` covers ``(t_{k-1}, t_k]``; the first covers ``(t_0 - dt, t_0]`` with ``dt`` the
+sample interval. Rates become increments as ``rate_k * (t_k - t_{k-1})`` (exact for
+interval means). Other columns (temperature, status) are ignored.
+
+HDF5: a group (the file root, or the one named by ``group``) holding one 1-D dataset per
+column, named ``time``, ``gyro_x``, ...; each dataset's unit is its attribute ``unit``
+(or the name carries it, ``"gyro_x [deg/s]"``).
+
+Checks
+------
+Every problem is one :class:`LogError` naming the file, the line (CSV, counting the header
+as line 1) or the row (Parquet, HDF5, counting the first data row as row 1), the sample's
+time, and the fix. Nothing is interpolated, filled or reordered:
+
+=====================  =========================================================================
+problem                rule
+=====================  =========================================================================
+missing column         a required column is absent (the message lists those present)
+unknown unit           a unit :func:`cosim.units.parse_unit` does not know, or of the wrong kind
+unreadable value       a field that is not a number (a truncated last line is named as such)
+NaN / inf              any non-finite value
+duplicate time         ``t_k == t_{k-1}``; policy ``duplicates = "drop"`` drops the row when its
+                       values equal the previous row's (a logger's retransmission), else error
+time going backwards   ``t_k < t_{k-1}``
+gap                    ``t_k - t_{k-1} > 1.5 dt`` (samples lost: no policy can invent them)
+jitter / clock drift   ``|t_k - (t_0 + k dt)| > jitter * dt``: the stated tolerance on the
+                       deviation from the nominal grid (default 5 % of the interval)
+=====================  =========================================================================
+
+The nominal interval ``dt`` is ``1 / sample_rate`` when given, else the median interval of
+the first chunk. Memory is bounded by the chunk size (``chunk_rows``), whatever the log's
+length: :meth:`ImuLog.chunks` streams, and :meth:`ImuLog.scan` checks a whole log in one
+streaming pass.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+import re
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from cosim.errors import UnitError, UserError, did_you_mean
+from cosim.units import parse_unit
+
+#: Default chunk size of the readers [rows].
+CHUNK_ROWS = 65536
+#: Default tolerance on the deviation of a timestamp from the nominal grid [sample intervals].
+JITTER = 0.05
+#: An interval longer than this many nominal intervals is a gap (samples lost).
+GAP_FACTOR = 1.5
+
+AXES = ("x", "y", "z")
+#: Accepted column names per sensor triad (first: the canonical name).
+PREFIXES = {"gyro": ("gyro",), "acc": ("acc", "accel")}
+_HEADER = re.compile(r"^\s*([^\[\]]+?)\s*(?:\[([^\[\]]*)\])?\s*$")
+
+#: Dimensions, in the order of :attr:`cosim.units.Unit.dimension`, of each kind of column.
+_KINDS = {
+    "gyro": {"increment": "rad", "rate": "rad/s"},
+    "acc": {"increment": "m/s", "rate": "m/s2"},
+}
+
+
+class LogError(UserError, ValueError):
+    """A log cannot be used as it is: one line with the file, where, the time and the fix.
+
+    Parameters
+    ----------
+    file : str
+        The log file.
+    message : str
+        What is wrong.
+    fix : str
+        How to repair it.
+    where : str, optional
+        ``"line 12"`` (CSV) or ``"row 12"`` (Parquet, HDF5).
+    time : float, optional
+        The sample's time [s].
+    """
+
+    def __init__(
+        self, file: str, message: str, fix: str, where: str | None = None, time: float | None = None
+    ) -> None:
+        self.file, self.where, self.time, self.fix = file, where, time, fix
+        place = ", ".join(
+            x for x in (file, where, None if time is None else f"t = {time:.9g} s") if x
+        )
+        super().__init__(f"{place}: {message}; {fix}")
+
+
+class LogColumnError(LogError):
+    """A required column is missing, or a column's unit is unknown or of the wrong kind."""
+
+
+class LogValueError(LogError):
+    """A value cannot be read (truncated line, text) or is NaN / infinite."""
+
+
+class LogTimeError(LogError):
+    """Timestamps: a duplicate, time going backwards, a gap, or jitter beyond the tolerance."""
+
+
+@dataclass(frozen=True)
+class Columns:
+    """Where the seven used columns are and how to turn them into SI increments.
+
+    Attributes
+    ----------
+    index : tuple of int
+        Column positions of time, gyro x y z, acc x y z in the file (7 entries).
+    names : tuple of str
+        Their headers as written.
+    time_factor : float
+        Time unit -> s.
+    factor : ndarray, shape (6,)
+        Sensor unit -> SI (rad, rad/s, m/s or m/s2).
+    rate : ndarray of bool, shape (6,)
+        True where the column is a rate (mean over the interval), False for increments.
+    """
+
+    index: tuple[int, ...]
+    names: tuple[str, ...]
+    time_factor: float
+    factor: np.ndarray
+    rate: np.ndarray
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Checked samples, in SI increments.
+
+    Attributes
+    ----------
+    first : int
+        Number of the first sample in the log (0-based sample index).
+    line : ndarray of int, shape (n,)
+        Line (CSV) or row (Parquet, HDF5) of each sample, for messages.
+    time : ndarray, shape (n,)
+        Sample times [s].
+    dtheta : ndarray, shape (n, 3)
+        Angle increments over each sample interval, body axes [rad].
+    dv : ndarray, shape (n, 3)
+        Velocity increments (integral of the specific force), body axes [m/s].
+    """
+
+    first: int
+    line: np.ndarray
+    time: np.ndarray
+    dtheta: np.ndarray
+    dv: np.ndarray
+
+
+@dataclass(frozen=True)
+class LogSummary:
+    """What a full scan of a log found.
+
+    Attributes
+    ----------
+    samples : int
+        Samples kept (after the duplicate policy).
+    t_first, t_last : float
+        First and last sample time [s].
+    dt : float
+        Nominal sample interval [s].
+    dropped : int
+        Duplicate rows dropped by ``duplicates = "drop"``.
+    dtheta_sum, dv_sum : ndarray, shape (3,)
+        Sum of all increments [rad], [m/s] (:func:`math.fsum`, correctly rounded).
+    """
+
+    samples: int
+    t_first: float
+    t_last: float
+    dt: float
+    dropped: int
+    dtheta_sum: np.ndarray
+    dv_sum: np.ndarray
+
+
+def parse_header(names: list[str], file: str, where: str = "line 1") -> Columns:
+    """Find the time and sensor columns in a list of ``"name [unit]"`` headers.
+
+    Parameters
+    ----------
+    names : list of str
+        Column headers as written.
+    file : str
+        The log, for messages.
+    where : str, optional
+        Where the headers are (``"line 1"``).
+
+    Returns
+    -------
+    Columns
+
+    Raises
+    ------
+    LogColumnError
+        A missing column, a column without unit, an unknown unit or one of the wrong kind.
+    """
+    parsed: dict[str, tuple[int, str, str]] = {}
+    for i, raw in enumerate(names):
+        m = _HEADER.match(str(raw))
+        if m:
+            parsed.setdefault(m.group(1).strip().lower(), (i, str(raw).strip(), m.group(2)))
+    wanted = ["time"] + [f"{p}_{a}" for p in PREFIXES for a in AXES]
+    index, shown, units = [], [], []
+    for key in wanted:
+        prefix, _, axis = key.partition("_")
+        spellings = [key] if key == "time" else [f"{p}_{axis}" for p in PREFIXES[prefix]]
+        found = next((parsed[s] for s in spellings if s in parsed), None)
+        if found is None:
+            tip = did_you_mean(key, parsed)
+            raise LogColumnError(
+                file,
+                f"no column '{key}' (columns found: {', '.join(map(str, names))}).{tip}",
+                "name the columns time, gyro_x, gyro_y, gyro_z, acc_x, acc_y, acc_z, each "
+                "with its unit, e.g. 'gyro_x [deg/s]'",
+                where,
+            )
+        i, text, unit = found
+        if unit is None or not unit.strip():
+            raise LogColumnError(
+                file,
+                f"column '{text}' has no unit",
+                f"write its unit in brackets, e.g. '{text} [s]'"
+                if key == "time"
+                else f"write its unit in brackets, e.g. '{text} [deg/s]' or '{text} [m/s2]'",
+                where,
+            )
+        index.append(i)
+        shown.append(text)
+        units.append(unit.strip())
+    try:
+        time_unit = parse_unit(units[0])
+    except UnitError as exc:
+        raise LogColumnError(
+            file, f"column '{shown[0]}': {exc.message}", "use s, ms or us", where
+        ) from exc
+    if time_unit.dimension != parse_unit("s").dimension or time_unit.offset:
+        raise LogColumnError(
+            file, f"column '{shown[0]}' has unit '{units[0]}', not a time", "use s, ms or us", where
+        )
+    factor = np.empty(6)
+    rate = np.empty(6, dtype=bool)
+    for j, (text, unit) in enumerate(zip(shown[1:], units[1:], strict=True)):
+        triad = "gyro" if j < 3 else "acc"
+        try:
+            u = parse_unit(unit)
+        except UnitError as exc:
+            raise LogColumnError(
+                file,
+                f"column '{text}': {exc.message}",
+                "use a unit the unit system knows (README, 'Scenario files')",
+                where,
+            ) from exc
+        kinds = _KINDS[triad]
+        for kind, ref in kinds.items():
+            if u.compatible(parse_unit(ref)) and not u.offset:
+                factor[j] = u.factor / parse_unit(ref).factor
+                rate[j] = kind == "rate"
+                break
+        else:
+            raise LogColumnError(
+                file,
+                f"column '{text}' has unit '{unit}' ({u.si_text()}), which is neither an "
+                f"increment ({kinds['increment']}) nor a rate ({kinds['rate']})",
+                "give gyro columns an angle or angular-rate unit and acc columns a velocity "
+                "or acceleration unit",
+                where,
+            )
+    for lo, triad in ((0, "gyro"), (3, "acc")):
+        if len(set(rate[lo : lo + 3].tolist())) > 1:
+            raise LogColumnError(
+                file,
+                f"the {triad} columns mix rates and increments "
+                f"({', '.join(shown[1 + lo : 4 + lo])})",
+                "give the three axes of a triad the same kind of unit",
+                where,
+            )
+    return Columns(tuple(index), tuple(shown), time_unit.factor, factor, rate)
+
+
+# ----------------------------------------------------------------------------- raw sources
+def _csv_header(path: Path) -> list[str]:
+    """The header names of a CSV log (its first line)."""
+    with path.open("r", newline="") as handle:
+        header = handle.readline()
+    if not header.strip():
+        raise LogColumnError(
+            str(path),
+            "the file is empty or its first line is blank",
+            "write the header 'time [s],gyro_x [deg/s],...' on line 1",
+            "line 1",
+        )
+    return [h.strip() for h in header.rstrip("\r\n").split(",")]
+
+
+def _csv_lines(path: Path, chunk_rows: int) -> Iterator[tuple[np.ndarray, list[str]]]:
+    """``(line numbers, text lines)`` of a CSV log after its header, ``chunk_rows`` at a time."""
+    with path.open("r", newline="") as handle:
+        handle.readline()
+        line_no = 2
+        while True:
+            block = list(itertools.islice(handle, chunk_rows))
+            if not block:
+                return
+            yield np.arange(line_no, line_no + len(block)), block
+            line_no += len(block)
+
+
+def _parse_csv(
+    file: str,
+    lines: np.ndarray,
+    block: list[str],
+    n_fields: int,
+    cols: Columns,
+    last_chunk_end: bool,
+) -> np.ndarray:
+    """Parse CSV text lines into a (n, 7) float array of the used columns, checked."""
+    counts = [s.count(",") + 1 for s in block]
+    for k, (count, text) in enumerate(zip(counts, block, strict=True)):
+        complete = text.endswith("\n")
+        if count != n_fields or not text.strip():
+            _bad_line(file, int(lines[k]), text, count, n_fields, truncated=not complete)
+    try:
+        data = np.loadtxt(block, delimiter=",", usecols=cols.index, ndmin=2, dtype=float)
+    except ValueError:
+        for k, text in enumerate(block):
+            fields = text.rstrip("\r\n").split(",")
+            for i, name in zip(cols.index, cols.names, strict=True):
+                try:
+                    float(fields[i])
+                except ValueError:
+                    _bad_line(
+                        file,
+                        int(lines[k]),
+                        text,
+                        len(fields),
+                        n_fields,
+                        truncated=not text.endswith("\n") and last_chunk_end,
+                        column=name,
+                        field=fields[i],
+                    )
+        raise  # pragma: no cover - loadtxt failed on a line every field of which parses
+    return data
+
+
+def _bad_line(
+    file: str,
+    line: int,
+    text: str,
+    count: int,
+    n_fields: int,
+    *,
+    truncated: bool,
+    column: str | None = None,
+    field: str | None = None,
+) -> None:
+    if truncated:
+        raise LogValueError(
+            file,
+            f"the last line is cut short ({count} of {n_fields} fields, no end of line): "
+            f"{text.strip()[:60]!r}",
+            "the log was still being written or the copy was interrupted: copy it again, "
+            f"or delete line {line}",
+            f"line {line}",
+        )
+    if column is not None:
+        raise LogValueError(
+            file,
+            f"column '{column}' holds {field.strip()!r}, not a number",
+            "write a number there (empty fields are not filled in)",
+            f"line {line}",
+        )
+    raise LogValueError(
+        file,
+        f"{count} fields where the header has {n_fields}" if text.strip() else "blank line",
+        "give every line one value per header column (delete blank lines)",
+        f"line {line}",
+    )
+
+
+def _table_header(path: Path, fmt: str, group: str | None) -> list[str]:
+    if fmt == "parquet":
+        pq = _import("pyarrow.parquet", "pyarrow")
+        return list(pq.ParquetFile(path).schema_arrow.names)
+    h5py = _import("h5py", "h5py")
+    with h5py.File(path, "r") as f:
+        g = f[group] if group else f
+        names = []
+        for key, ds in g.items():
+            if not isinstance(ds, h5py.Dataset) or ds.ndim != 1:
+                continue
+            unit = ds.attrs.get("unit")
+            if isinstance(unit, bytes):
+                unit = unit.decode()
+            names.append(f"{key} [{unit}]" if unit is not None and "[" not in key else key)
+        return names
+
+
+def _table_raw(
+    path: Path, fmt: str, group: str | None, cols: Columns, names: list[str], chunk_rows: int
+) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """``(row numbers, (n, 7) values)`` chunks of a Parquet or HDF5 log."""
+    used = [names[i] for i in cols.index]
+    row = 1
+    if fmt == "parquet":
+        pq = _import("pyarrow.parquet", "pyarrow")
+        pf = pq.ParquetFile(path)
+        for batch in pf.iter_batches(batch_size=chunk_rows, columns=used):
+            data = np.column_stack(
+                [batch.column(i).to_numpy(zero_copy_only=False).astype(float) for i in range(7)]
+            )
+            yield np.arange(row, row + len(data)), data
+            row += len(data)
+        return
+    h5py = _import("h5py", "h5py")
+    with h5py.File(path, "r") as f:
+        g = f[group] if group else f
+        keys = [u.split("[")[0].strip() if u.split("[")[0].strip() in g else u for u in used]
+        sets = [g[k] for k in keys]
+        n = min(len(s) for s in sets)
+        if any(len(s) != n for s in sets):
+            lengths = ", ".join(f"{k}: {len(s)}" for k, s in zip(keys, sets, strict=True))
+            raise LogValueError(
+                str(path),
+                f"the datasets differ in length ({lengths})",
+                "write one value per sample in every dataset",
+                f"row {n + 1}",
+            )
+        for lo in range(0, n, chunk_rows):
+            hi = min(n, lo + chunk_rows)
+            data = np.column_stack([np.asarray(s[lo:hi], dtype=float) for s in sets])
+            yield np.arange(lo + 1, hi + 1), data
+
+
+def _import(module: str, dist: str) -> Any:
+    import importlib
+
+    try:
+        return importlib.import_module(module)
+    except ImportError as exc:
+        raise UserError(
+            f"reading this log needs {dist}, which is not installed: "
+            f"pip install 'ins-cosim[logs]' (or pip install {dist})"
+        ) from exc
+
+
+# ----------------------------------------------------------------------------- the log
+class ImuLog:
+    """A recorded IMU log, read and checked chunk by chunk.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.csv``, ``.parquet`` / ``.pq`` or ``.h5`` / ``.hdf5``.
+    sample_rate : float, optional
+        Nominal sample rate [Hz]; default: from the median interval of the first chunk.
+    jitter : float, optional
+        Tolerance on ``|t_k - (t_0 + k dt)|`` in sample intervals (default :data:`JITTER`).
+    duplicates : {"error", "drop"}, optional
+        ``"drop"`` drops a row whose time and values repeat the previous row's.
+    chunk_rows : int, optional
+        Rows read at a time (the memory bound).
+    group : str, optional
+        HDF5 group holding the datasets (default: the file root).
+
+    Raises
+    ------
+    LogError
+        An unreadable header (missing column, unknown unit) at construction; the samples
+        are checked as they are read (:meth:`chunks`, :meth:`scan`).
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        *,
+        sample_rate: float | None = None,
+        jitter: float = JITTER,
+        duplicates: str = "error",
+        chunk_rows: int = CHUNK_ROWS,
+        group: str | None = None,
+    ) -> None:
+        self.path = Path(path)
+        self.file = str(path)
+        if not self.path.is_file():
+            raise LogError(self.file, "no such file", "check the path (relative to the scenario)")
+        suffix = self.path.suffix.lower()
+        formats = {
+            ".csv": "csv",
+            ".parquet": "parquet",
+            ".pq": "parquet",
+            ".h5": "hdf5",
+            ".hdf5": "hdf5",
+        }
+        if suffix not in formats:
+            raise LogError(
+                self.file,
+                f"unknown log format '{suffix}'",
+                "use .csv, .parquet (.pq) or .h5 (.hdf5)",
+            )
+        if duplicates not in ("error", "drop"):
+            raise UserError(f"duplicates must be 'error' or 'drop', got {duplicates!r}")
+        if not (sample_rate is None or sample_rate > 0.0):
+            raise UserError(f"sample_rate must be > 0 Hz, got {sample_rate!r}")
+        if not jitter > 0.0 or jitter >= GAP_FACTOR - 1.0:
+            raise UserError(f"jitter must lie in (0, {GAP_FACTOR - 1.0:g}), got {jitter!r}")
+        self.format = formats[suffix]
+        self.sample_rate = sample_rate
+        self.jitter = float(jitter)
+        self.duplicates = duplicates
+        self.chunk_rows = int(chunk_rows)
+        self.group = group
+        self.where = "line" if self.format == "csv" else "row"
+        if self.format == "csv":
+            names = _csv_header(self.path)
+        else:
+            names = _table_header(self.path, self.format, group)
+        self.names = names
+        self.columns = parse_header(
+            names, self.file, "line 1" if self.format == "csv" else "column names"
+        )
+
+    # --------------------------------------------------------------- raw values
+    def _raw(self) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+        if self.format != "csv":
+            yield from _table_raw(
+                self.path, self.format, self.group, self.columns, self.names, self.chunk_rows
+            )
+            return
+        raw = _csv_lines(self.path, self.chunk_rows)
+        pending = next(raw, None)
+        while pending is not None:
+            following = next(raw, None)
+            lines, block = pending
+            yield (
+                lines,
+                _parse_csv(
+                    self.file, lines, block, len(self.names), self.columns, following is None
+                ),
+            )
+            pending = following
+
+    # --------------------------------------------------------------- checked samples
+    def chunks(self) -> Iterator[Chunk]:
+        """The checked samples as SI increments, one chunk at a time.
+
+        Yields
+        ------
+        Chunk
+            At most ``chunk_rows`` samples.
+
+        Raises
+        ------
+        LogError
+            At the first bad value or timestamp (see the module docstring).
+        """
+        cols = self.columns
+        dt = None if self.sample_rate is None else 1.0 / self.sample_rate
+        prev_t: float | None = None
+        prev_row: np.ndarray | None = None
+        t0 = 0.0
+        count = 0
+        for lines, data in self._raw():
+            bad = ~np.isfinite(data)
+            if bad.any():
+                k, c = np.argwhere(bad)[0]
+                t = data[k, 0] * cols.time_factor
+                raise LogValueError(
+                    self.file,
+                    f"column '{cols.names[c]}' is {float(data[k, c])!r}",
+                    "nothing is interpolated: repair or cut the log around this sample",
+                    f"{self.where} {lines[k]}",
+                    None if not math.isfinite(t) else float(t),
+                )
+            t = data[:, 0] * cols.time_factor
+            values = data[:, 1:] * cols.factor
+            if self.duplicates == "drop":
+                prev_t_arr = np.concatenate([[np.nan if prev_t is None else prev_t], t[:-1]])
+                prev_v = np.vstack(
+                    [values[:1] * np.nan if prev_row is None else prev_row, values[:-1]]
+                )
+                same = (t == prev_t_arr) & np.all(values == prev_v, axis=1)
+                if same.any():
+                    keep = ~same
+                    lines, t, values = lines[keep], t[keep], values[keep]
+                    self._dropped += int(same.sum())
+                if len(t) == 0:
+                    continue
+            if dt is None:
+                d = np.diff(t)
+                if len(d) == 0:
+                    raise LogTimeError(
+                        self.file,
+                        "one sample: the sample interval cannot be found",
+                        "give the block's sample_rate",
+                        f"{self.where} {lines[0]}",
+                        float(t[0]),
+                    )
+                dt = float(np.median(d))
+                if not dt > 0.0:
+                    k = int(np.argmax(d <= 0.0))
+                    self._time_error(lines, t, k + 1, float(t[k]), 1.0)
+                self.sample_rate = 1.0 / dt
+            if prev_t is None:
+                t0 = float(t[0])
+            before = np.concatenate([[t[0] - dt if prev_t is None else prev_t], t])
+            d = np.diff(before)
+            grid = t - (t0 + (count + np.arange(len(t))) * dt)
+            wrong = (d <= 0.0) | (d > GAP_FACTOR * dt) | (np.abs(grid) > self.jitter * dt)
+            if wrong.any():
+                k = int(np.argmax(wrong))
+                self._time_error(lines, t, k, float(before[k]), dt, float(grid[k]))
+            inc = np.where(cols.rate, values * d[:, None], values)
+            yield Chunk(count, lines, t, inc[:, :3], inc[:, 3:])
+            count += len(t)
+            prev_t = float(t[-1])
+            prev_row = values[-1:].copy()
+        if prev_t is None:
+            raise LogValueError(
+                self.file,
+                "no samples after the header",
+                "record at least two samples",
+                f"{self.where} 2",
+            )
+        self.dt = dt
+
+    _dropped = 0
+
+    def _time_error(
+        self, lines: np.ndarray, t: np.ndarray, k: int, t_before: float, dt: float, off: float = 0.0
+    ) -> None:
+        at = f"{self.where} {lines[k]}"
+        d = float(t[k]) - t_before
+        if d == 0.0:
+            raise LogTimeError(
+                self.file,
+                "duplicate time (the same as the previous sample's)",
+                "delete the repeated row, or set duplicates = 'drop' if it repeats the previous "
+                "row exactly",
+                at,
+                float(t[k]),
+            )
+        if d < 0.0:
+            raise LogTimeError(
+                self.file,
+                f"time goes backwards by {-d:.6g} s (previous sample at {t_before:.9g} s)",
+                "sort the log by time or cut it where the clock jumped",
+                at,
+                float(t[k]),
+            )
+        if d > GAP_FACTOR * dt:
+            missing = round(d / dt) - 1
+            raise LogTimeError(
+                self.file,
+                f"gap of {d:.6g} s after the sample at {t_before:.9g} s (about "
+                f"{missing} sample(s) missing at {1.0 / dt:.6g} Hz)",
+                "nothing is interpolated: cut the log at the gap and replay the parts separately",
+                at,
+                float(t[k]),
+            )
+        raise LogTimeError(
+            self.file,
+            f"timestamp {off / dt:+.3g} sample intervals off the nominal "
+            f"{1.0 / dt:.6g} Hz grid (tolerance {self.jitter:g})",
+            "state the log's true sample_rate, or raise jitter if the clock is known to be "
+            "this loose",
+            at,
+            float(t[k]),
+        )
+
+    def scan(self) -> LogSummary:
+        """Check the whole log in one streaming pass.
+
+        Returns
+        -------
+        LogSummary
+
+        Raises
+        ------
+        LogError
+            At the first problem.
+        """
+        self._dropped = 0
+        n = 0
+        t_first = t_last = math.nan
+        sums: list[list[float]] = [[] for _ in range(6)]
+        for chunk in self.chunks():
+            if n == 0:
+                t_first = float(chunk.time[0])
+            n += len(chunk.time)
+            t_last = float(chunk.time[-1])
+            for j, col in enumerate(np.hstack([chunk.dtheta, chunk.dv]).T):
+                sums[j] = [math.fsum(sums[j] + [math.fsum(col)])]
+        total = np.array([s[0] for s in sums])
+        return LogSummary(n, t_first, t_last, self.dt, self._dropped, total[:3], total[3:])
