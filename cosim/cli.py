@@ -28,6 +28,14 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     click.echo(f"warning: {message}", err=True)
 
 
+def _echo_sources(scenario) -> None:  # noqa: ANN001  (a cosim.scenario.Scenario)
+    """One line per block: the FMU file it runs from, or in-process and its model or class."""
+    width = max(len(name) for name in scenario.blocks)
+    for spec in scenario.blocks.values():
+        where = f"FMU {spec.source}" if spec.kind == "fmu" else f"in-process {spec.source}"
+        click.echo(f"  {spec.name:<{width}}  {where}")
+
+
 class _Command(click.Command):
     """Every command exits 3 on a usage error (``verify`` uses 1 and 2 for verdicts)."""
 
@@ -80,6 +88,7 @@ def run(scenario: Path, out: Path, fmu_dir: Path | None, stop: str | None, plot:
             f"running '{sc.name}': {n_blocks} blocks, {master.settings.n_steps} steps of "
             f"{master.settings.step:g} s ({master.settings.coupling})"
         )
+        _echo_sources(sc)
         try:
             result = master.run()
         finally:
@@ -127,6 +136,7 @@ def check(scenario: Path, fmu_dir: Path | None) -> None:
         f"{scenario}: OK - {len(system.blocks)} blocks, {len(system.connections)} scalar "
         f"connections, {master.settings.n_steps} steps; stepping order: {' -> '.join(master.order)}"
     )
+    _echo_sources(sc)
 
 
 @main.command()
@@ -213,6 +223,12 @@ def verify(
     from cosim.verify.report import write_reports
 
     try:
+        from cosim.scenario import load_scenario
+
+        sc = load_scenario(scenario)
+        if fmu_dir is not None:
+            sc.use_fmus(fmu_dir)
+        _echo_sources(sc)
         campaign = run_campaign(
             scenario,
             report_dir,
