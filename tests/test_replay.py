@@ -10,6 +10,10 @@ copied, hence the result is in fact bit for bit); a 200 Hz log replayed into 100
 from __future__ import annotations
 
 import math
+import os
+import subprocess
+import sys
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -159,3 +163,86 @@ def test_bad_log_stops_the_run_before_its_first_step(tmp_path: Path) -> None:
     path.write_text("".join(lines))
     with pytest.raises(SimulationError, match=r"imu200.csv, line 1501, t = 7.505 s: gap"):
         seed003_replayed(path, stop="1 s", sample_rate=200.0)
+
+
+# ------------------------------------------------------------------------- as an FMU
+@pytest.fixture(scope="module")
+def seed003_log(tmp_path_factory: pytest.TempPathFactory) -> tuple[cosim.RunResult, Path]:
+    sim = seed003_with_imu_recorded(stop="60 s")
+    log = write_increment_log(
+        tmp_path_factory.mktemp("seed003") / "seed003_imu.csv",
+        sim.time[1:],
+        recorded(sim, "imu.dtheta_meas_b")[1:],
+        recorded(sim, "imu.dv_meas_b")[1:],
+    )
+    return sim, log
+
+
+@pytest.fixture(scope="module")
+def seed003_fmu(seed003_log: tuple[cosim.RunResult, Path], tmp_path_factory) -> Path:
+    from cosim.sensors.fmu import build_replay_fmu
+
+    return build_replay_fmu(seed003_log[1], tmp_path_factory.mktemp("fmu"))
+
+
+def test_replay_fmu_fills_the_imu_role(seed003_fmu: Path) -> None:
+    from click.testing import CliRunner
+
+    from cosim.cli import main
+    from cosim.interop.fmu_check import check_fmu
+
+    report = check_fmu(seed003_fmu, "imu")
+    assert report.satisfied, report.problems
+    cli = CliRunner().invoke(main, ["check-fmu", str(seed003_fmu), "--role", "imu"])
+    assert cli.exit_code == 0, cli.output
+    with zipfile.ZipFile(seed003_fmu) as z:
+        names = set(z.namelist())
+    for name in ("time.npy", "increments.npy", "sample_rate.npy", "seed003_imu.csv"):
+        assert f"resources/imu_log/{name}" in names
+    assert "resources/cosim/sensors/replay.py" in names
+    assert not any(n.startswith("resources/cosim/sensors/logs") for n in names)
+
+
+def test_replay_fmu_in_the_seed003_scenario_gives_the_simulated_alignment(
+    seed003_log: tuple[cosim.RunResult, Path], seed003_fmu: Path
+) -> None:
+    sim, _ = seed003_log
+    sc = cosim.load_scenario(SEED003)
+    sc.blocks["imu"] = BlockSpec("imu", "fmu", str(seed003_fmu))
+    sc.outputs = ["align", "imu.dtheta_meas_b", "imu.dv_meas_b"]
+    rep = cosim.run(sc, record_every=1, stop="60 s")
+    for name in (n for n in sim.names if n.startswith("align.")):
+        assert np.allclose(sim[name], rep[name], rtol=0.0, atol=1e-12), name
+
+
+def test_replay_fmu_under_fmpy_alone_gives_the_in_process_outputs(
+    seed003_log: tuple[cosim.RunResult, Path], seed003_fmu: Path, tmp_path: Path
+) -> None:
+    # A fresh interpreter: the FMU imports its own resources (cosim/sensors/replay.py), not
+    # this checkout; two samples per step (h = 0.2 s for the 10 Hz log).
+    _, log = seed003_log
+    out = tmp_path / "out.npy"
+    script = (
+        "import sys, numpy as np, fmpy\n"
+        f"r = fmpy.simulate_fmu({str(seed003_fmu)!r}, output_interval=0.2, stop_time=20.0,"
+        " output=['dtheta_meas_b[1]','dtheta_meas_b[2]','dtheta_meas_b[3]','dv_meas_b[1]',"
+        "'dv_meas_b[2]','dv_meas_b[3]','log_time'])\n"
+        "import cosim.sensors.replay as m\n"
+        "assert 'resources' in m.__file__, m.__file__\n"
+        f"np.save({str(out)!r}, np.column_stack([r[n] for n in r.dtype.names]))\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    proc = subprocess.run(
+        [sys.executable, "-c", script],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    fmu = np.load(out)
+    theta, v = _replay(log, 0.2, 100)
+    assert np.array_equal(fmu[1:, 1:4], theta)
+    assert np.array_equal(fmu[1:, 4:7], v)
+    assert np.allclose(fmu[1:, 7], np.arange(1, 101) * 0.2)

@@ -169,11 +169,12 @@ class ImuLogReplay(Block):
         if m < 1 or abs(ratio - m) > RATIO_TOL * max(ratio, 1.0):
             dt = 1.0 / self._rate
             lo, hi = max(1, math.floor(ratio)), max(1, math.ceil(ratio))
+            steps = f"{lo * dt:.9g} s" + ("" if lo == hi else f" or {hi * dt:.9g} s")
             raise ReplayError(
                 f"macro step {h:.9g} s holds {ratio:.9g} samples of the log at "
                 f"{self._rate:.9g} Hz (interval {dt:.9g} s): a step must hold a whole number "
-                f"of samples (nothing is interpolated); use master.step = {lo * dt:.9g} s or "
-                f"{hi * dt:.9g} s, or resample the log"
+                f"of samples (nothing is interpolated); use master.step = {steps} (or a "
+                f"multiple of {dt:.9g} s), or resample the log"
             )
         self._m_for = (h, m)
         return m
