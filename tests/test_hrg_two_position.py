@@ -17,15 +17,15 @@ import numpy as np
 import pytest
 from scipy.integrate import quad
 
-from cosim.alignment.hrg_two_position import (
-    ARCMIN,
-    DEG_H,
+from cosim.alignment.hrg_filters import (
     AlignmentSequenceError,
-    HrgTwoPositionAlignment,
     PositionFilter,
     TwoPositionAligner,
-    apparent_azimuth,
     azimuth_grid,
+)
+from cosim.alignment.hrg_model import (
+    UNIFORM_SIGMA,
+    apparent_azimuth,
     combine_positions,
     dv_coefficients,
     dv_jacobian,
@@ -33,7 +33,8 @@ from cosim.alignment.hrg_two_position import (
     predict_dv,
     tilt_jacobian,
 )
-from models.constants import OMEGA_IE
+from cosim.alignment.hrg_two_position import HrgTwoPositionAlignment
+from models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0, OMEGA_IE
 from models.conventions import rot_z, wrap_angle
 from models.hrg_platform import HrgPlatform
 
@@ -41,10 +42,9 @@ LAT = math.radians(45.0)
 G = 9.7966
 OC = OMEGA_IE * math.cos(LAT)
 OS = OMEGA_IE * math.sin(LAT)
-DEG = math.pi / 180.0
-UNIFORM = math.pi / math.sqrt(3.0)
-P0 = np.diag([(3 * ARCMIN) ** 2, (3 * ARCMIN) ** 2, (0.2 * DEG_H) ** 2, UNIFORM**2])
-N_ACC = 5e-6 * 9.80665  # accelerometer white noise [m/s/sqrt(s)]
+UNIFORM = UNIFORM_SIGMA
+P0 = np.diag([(3 * ARCMIN) ** 2, (3 * ARCMIN) ** 2, (0.2 * DEG_PER_HOUR) ** 2, UNIFORM**2])
+N_ACC = 5e-6 * G0  # accelerometer white noise [m/s/sqrt(s)]
 R_VAR = N_ACC**2 * 1.0 + 1e-4**2 / 6.0  # per 1 s increment, as the block computes it
 
 
@@ -86,7 +86,7 @@ def test_predict_dv_matches_the_exact_platform() -> None:
     # Truth: HrgPlatform at 100 deg with x, y drifts (no azimuth drift: the filter's
     # azimuth is constant), increments integrated with the trapezoid rule on 10 ms.
     a0 = 100 * DEG
-    eps = np.array([0.1, 0.2, 0.0]) * DEG_H
+    eps = np.array([0.1, 0.2, 0.0]) * DEG_PER_HOUR
     p = HrgPlatform()
     p.azimuth0, p.index_time, p.omega_err_p, p.g = a0, -1.0, eps, G
     p.setup_experiment(0.0)
@@ -108,7 +108,7 @@ def test_predict_dv_matches_the_exact_platform() -> None:
 
 
 def test_dv_jacobian_matches_finite_differences() -> None:
-    x = np.array([2 * ARCMIN, -1 * ARCMIN, 0.1 * DEG_H, 1.7])
+    x = np.array([2 * ARCMIN, -1 * ARCMIN, 0.1 * DEG_PER_HOUR, 1.7])
     E0, E1 = dv_coefficients(120.0, 121.0, LAT)
     J = dv_jacobian(x, E0, E1, LAT, G)
     steps = np.array([1e-7, 1e-7, 1e-11, 1e-7])
@@ -123,7 +123,7 @@ def test_dv_jacobian_matches_finite_differences() -> None:
 
 def test_east_drift_and_azimuth_cannot_be_separated_in_one_position() -> None:
     # Eq. (15): (A, d) and (A + delta, d turned by delta) give the same increments.
-    eps = np.array([0.1, 0.2, 0.0]) * DEG_H
+    eps = np.array([0.1, 0.2, 0.0]) * DEG_PER_HOUR
     for a in (10 * DEG, 100 * DEG, -120 * DEG):
         x = apparent_state(a, eps, (3 * ARCMIN, 3 * ARCMIN))
         d = geo_drift(a, eps)
@@ -138,7 +138,7 @@ def test_east_drift_and_azimuth_cannot_be_separated_in_one_position() -> None:
 
 def test_mirror_solution_predicts_the_same_increments() -> None:
     # psi + pi, D_N -> 2 Oc - D_N, tilts -> -tilts: only the drift prior tells them apart.
-    x = np.array([2 * ARCMIN, 3 * ARCMIN, 0.15 * DEG_H, 1.745])
+    x = np.array([2 * ARCMIN, 3 * ARCMIN, 0.15 * DEG_PER_HOUR, 1.745])
     mirror = np.array([-x[0], -x[1], 2 * OC - x[2], float(wrap_angle(x[3] + math.pi))])
     for t0 in (0.0, 100.0, 399.0):
         E0, E1 = dv_coefficients(t0, t0 + 1.0, LAT)
@@ -148,7 +148,7 @@ def test_mirror_solution_predicts_the_same_increments() -> None:
 
 
 def test_tilt_jacobian_is_the_exact_linear_map() -> None:
-    x = np.array([2 * ARCMIN, -1 * ARCMIN, 0.1 * DEG_H, 0.3])
+    x = np.array([2 * ARCMIN, -1 * ARCMIN, 0.1 * DEG_PER_HOUR, 0.3])
     u, J = tilt_jacobian(x, 150.0, 0.02, LAT)
     dx = np.array([1e-4, -2e-4, 3e-8])
     u2, _ = tilt_jacobian(x + np.append(dx, 0.0), 150.0, 0.02, LAT)
@@ -175,17 +175,19 @@ def run_filter(method: int, data: list[np.ndarray], seed: int = 0, n: int = 200)
 
 @pytest.mark.parametrize("a_deg", [10.0, 100.0, 170.0, -120.0])
 def test_kf_on_the_linear_model_recovers_noise_free_data_exactly(a_deg: float) -> None:
-    x = apparent_state(a_deg * DEG, np.array([0.1, 0.2, 0.0]) * DEG_H, (3 * ARCMIN, -2 * ARCMIN))
+    x = apparent_state(
+        a_deg * DEG, np.array([0.1, 0.2, 0.0]) * DEG_PER_HOUR, (3 * ARCMIN, -2 * ARCMIN)
+    )
     f = run_filter(2, synthetic(x, 0, noise=False))
     # noise-free data of a linear model: only the (weak) prior pulls, at the level
     # sigma_post^2 / sigma_prior^2 ~ 1e-5 of the prior mean offset
     assert float(wrap_angle(f.x[3] - x[3])) == pytest.approx(0.0, abs=1e-3 * ARCMIN)
-    assert f.x[2] == pytest.approx(x[2], abs=1e-5 * DEG_H)
+    assert f.x[2] == pytest.approx(x[2], abs=1e-5 * DEG_PER_HOUR)
     assert f.x[:2] == pytest.approx(x[:2], abs=1e-3 * ARCMIN)
 
 
 def test_upf_converges_for_every_initial_azimuth_and_the_ekf_falls_into_the_mirror() -> None:
-    eps = np.array([0.1, 0.2, 0.0]) * DEG_H
+    eps = np.array([0.1, 0.2, 0.0]) * DEG_PER_HOUR
     for i, a_deg in enumerate((10.0, 45.0, 100.0, 170.0, -120.0)):
         x = apparent_state(a_deg * DEG, eps, (3 * ARCMIN, 3 * ARCMIN))
         data = synthetic(x, 100 + i)
@@ -221,7 +223,7 @@ def test_azimuth_grid_represents_the_prior() -> None:
     a = np.array(
         [[1.0, 0.0, 0.0, 0.0], [0.3, 1.0, 0.0, 0.0], [0.0, 0.2, 1.0, 0.0], [0.5, 0.1, 0.0, 1.0]]
     )
-    s = np.diag([3 * ARCMIN, 3 * ARCMIN, 0.2 * DEG_H, 2 * DEG])
+    s = np.diag([3 * ARCMIN, 3 * ARCMIN, 0.2 * DEG_PER_HOUR, 2 * DEG])
     P = s @ a @ a.T @ s
     parts, cov, w = azimuth_grid(m, P, 400, rng, False, 1.0)
     mean = w @ parts
@@ -241,7 +243,7 @@ def exact_pair(a1: float, eps1: np.ndarray, eps2: np.ndarray) -> tuple[np.ndarra
 
 @pytest.mark.parametrize("a_deg", [100.0, -120.0, 10.0])
 def test_combine_positions_recovers_azimuth_and_gyro_drifts(a_deg: float) -> None:
-    eps = np.array([0.1, 0.2, 0.0]) * DEG_H
+    eps = np.array([0.1, 0.2, 0.0]) * DEG_PER_HOUR
     x1, x2 = exact_pair(a_deg * DEG, eps, eps)
     P = np.diag([1e-12, 1e-12, 1e-20, 1e-12])
     s = combine_positions(x1, P, x2, P, math.pi / 2, LAT)
@@ -261,9 +263,9 @@ def test_regular_drift_shows_in_h_e() -> None:
     # one is corrected with the changed drift, so the average moves by delta / (2 Oc)
     # and (D_E)_1 = -rho_1 sin(psi_1 - avg) with it by delta / 2.
     a1 = 100 * DEG
-    eps = np.array([0.1, 0.2, 0.0]) * DEG_H
+    eps = np.array([0.1, 0.2, 0.0]) * DEG_PER_HOUR
     east_p = rot_z(a1)[:2, :2].T @ np.array([1.0, 0.0])  # east at position 1, in p axes
-    delta = 0.01 * DEG_H
+    delta = 0.01 * DEG_PER_HOUR
     x1, x2 = exact_pair(a1, eps, eps + np.append(delta * east_p, 0.0))
     P = np.diag([1e-12, 1e-12, 1e-20, 1e-12])
     s = combine_positions(x1, P, x2, P, math.pi / 2, LAT)
@@ -278,10 +280,12 @@ def test_regular_drift_shows_in_h_e() -> None:
 
 def test_combined_sigma_matches_monte_carlo() -> None:
     x1, x2 = exact_pair(
-        100 * DEG, np.array([0.1, 0.2, 0.0]) * DEG_H, np.array([0.1, 0.2, 0.0]) * DEG_H
+        100 * DEG,
+        np.array([0.1, 0.2, 0.0]) * DEG_PER_HOUR,
+        np.array([0.1, 0.2, 0.0]) * DEG_PER_HOUR,
     )
-    P1 = np.diag([1e-8, 1e-8, (0.002 * DEG_H) ** 2, (0.6 * ARCMIN) ** 2])
-    P2 = np.diag([1e-8, 1e-8, (0.0015 * DEG_H) ** 2, (0.5 * ARCMIN) ** 2])
+    P1 = np.diag([1e-8, 1e-8, (0.002 * DEG_PER_HOUR) ** 2, (0.6 * ARCMIN) ** 2])
+    P2 = np.diag([1e-8, 1e-8, (0.0015 * DEG_PER_HOUR) ** 2, (0.5 * ARCMIN) ** 2])
     s = combine_positions(x1, P1, x2, P2, math.pi / 2, LAT)
     rng = np.random.default_rng(5)
     n = 2000
@@ -299,13 +303,20 @@ def test_combined_sigma_matches_monte_carlo() -> None:
 
 def test_position2_prior_covers_the_truth() -> None:
     a1 = 100 * DEG
-    eps = np.array([0.1, 0.2, 0.0]) * DEG_H
+    eps = np.array([0.1, 0.2, 0.0]) * DEG_PER_HOUR
     x1 = apparent_state(a1, eps, (3 * ARCMIN, 3 * ARCMIN))
     P1 = np.diag(
-        [(0.01 * ARCMIN) ** 2, (0.01 * ARCMIN) ** 2, (0.002 * DEG_H) ** 2, (0.5 * ARCMIN) ** 2]
+        [
+            (0.01 * ARCMIN) ** 2,
+            (0.01 * ARCMIN) ** 2,
+            (0.002 * DEG_PER_HOUR) ** 2,
+            (0.5 * ARCMIN) ** 2,
+        ]
     )
     gap = 210.0
-    x2, P2 = position2_prior(x1, P1, gap, math.pi / 2, LAT, 0.2 * DEG_H, 6 * ARCMIN, 3 * ARCMIN)
+    x2, P2 = position2_prior(
+        x1, P1, gap, math.pi / 2, LAT, 0.2 * DEG_PER_HOUR, 6 * ARCMIN, 3 * ARCMIN
+    )
     # truth at position 2: tilts after 210 s of eq. (10) with the true drifts, model frame 2
     d1 = geo_drift(a1, eps)
     u_geo = cmath.exp(-1j * OS * gap) * complex(3 * ARCMIN, 3 * ARCMIN) + complex(
@@ -317,7 +328,7 @@ def test_position2_prior_covers_the_truth() -> None:
     assert np.all(z <= 3.0 * sd[[0, 1, 3]]), z / sd[[0, 1, 3]]
     # the apparent azimuth moves by (d_N1 + d_E1) / Oc; the prior knows d_N1 only
     assert 0.9 * DEG < sd[3] < 1.3 * DEG  # sigma_drift / Oc = 1.08 deg dominates
-    assert sd[2] == pytest.approx(0.2 * DEG_H)
+    assert sd[2] == pytest.approx(0.2 * DEG_PER_HOUR)
 
 
 # ----------------------------------------------------------------------- aligner and block

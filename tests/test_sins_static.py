@@ -11,35 +11,25 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.alignment.sins_static import (
-    ARCMIN,
-    ARCSEC,
-    DEG,
-    DEG_PER_HOUR,
-    MICRO_G,
+from cosim.alignment.coarse import coarse_alignment, coarse_error_theory, heading_limit
+from cosim.alignment.nav import STATIC_BASE, AlignmentConfigError, Strapdown, dcm_to_rotvec_3
+from cosim.alignment.sins_static import SinsStaticAlignment
+from cosim.alignment.static_model import (
     SEED003,
-    AlignmentConfigError,
     FilterTuning,
-    SinsStaticAlignment,
-    Strapdown,
-    coarse_alignment,
-    coarse_error_theory,
-    covariance_analysis,
-    dcm_euler,
-    dcm_rotvec,
     discretize_taylor,
     error_model,
-    heading_limit,
     measurement_matrix,
     noise_input,
+    static_covariance,
     table_dcm,
 )
 from cosim.blocks import InProcessHost
 from cosim.errors import SimulationError
 from cosim.estimation import observability_rank, piecewise_observability_rank, van_loan
 from cosim.master import Connection, Master, MasterSettings, System
-from models.constants import OMEGA_IE
-from models.conventions import euler_to_dcm_3, rotvec_to_dcm_3
+from models.constants import ARCMIN, ARCSEC, DEG, DEG_PER_HOUR, MICRO_G, OMEGA_IE
+from models.conventions import dcm_to_euler_3, euler_to_dcm_3, rotvec_to_dcm_3
 from models.earth import gravity
 from models.stationary_base import StationaryBase
 from models.strapdown_imu import StrapdownImu
@@ -106,7 +96,7 @@ def test_coarse_alignment_is_exact_with_a_perfect_imu(lat_deg: float, rpy_deg: t
     f_n = np.array([0.0, 0.0, -float(gravity(lat))])
     w_n = np.array([OMEGA_IE * math.cos(lat), 0.0, -OMEGA_IE * math.sin(lat)])
     est = coarse_alignment(c.T @ f_n, c.T @ w_n, lat)
-    err = dcm_euler(est) - np.array(rpy_deg) * DEG
+    err = dcm_to_euler_3(est) - np.array(rpy_deg) * DEG
     assert abs(math.remainder(err[2], 2 * math.pi)) < 1.0 * ARCSEC  # heading
     assert np.all(np.abs(err[:2]) < 0.1 * ARCSEC)  # level
     np.testing.assert_allclose(est @ est.T, np.eye(3), atol=1e-14)
@@ -206,7 +196,7 @@ def _nonlinear_error_rate(
     def psi_at(dt: float) -> np.ndarray:
         true = rotvec_to_dcm_3(-w_ie * dt) @ c_s_n @ rotvec_to_dcm_3(w_s * dt)
         comp = rotvec_to_dcm_3(-w_ie * dt) @ c_hat @ rotvec_to_dcm_3((w_s + eps_s) * dt)
-        return -dcm_rotvec(comp @ true.T)
+        return -dcm_to_rotvec_3(comp @ true.T)
 
     dt = 1e-3
     psi_rate = (psi_at(dt) - psi_at(-dt)) / (2 * dt)
@@ -299,8 +289,8 @@ def test_covariance_analysis_reproduces_the_issue_figures() -> None:
     static = {}
     for r in (0.1, 0.01):
         tun = FilterTuning(r_vel=r)
-        cov = covariance_analysis(300.0, tuning=tun, dt=0.1, kf_period=0.1)
-        static[r] = cov.at(300.0)[4] / ARCMIN
+        cov = static_covariance(300.0, tuning=tun, dt=0.1, kf_period=0.1)
+        static[r] = cov.sigma[cov.index(300.0), 4] / ARCMIN
     assert _quoted(static[0.1], 7.8, 1) and _quoted(static[0.01], 6.9, 1)
     limit = heading_limit(0.02 * DEG_PER_HOUR, 45.0 * DEG) / ARCMIN
     assert limit == pytest.approx(6.46, abs=0.005)
@@ -309,13 +299,11 @@ def test_covariance_analysis_reproduces_the_issue_figures() -> None:
     want = {0.1: (4.5, 1.1), 0.01: (2.4, 0.8)}
     for r, (w300, w600) in want.items():
         tun = FilterTuning(r_vel=r)
-        cov = covariance_analysis(
-            600.0, tuning=tun, dt=0.1, kf_period=0.1, angle=lambda t: rate * t
-        )
-        s300, s600 = cov.at(300.0)[4] / ARCMIN, cov.at(600.0)[4] / ARCMIN
+        cov = static_covariance(600.0, tuning=tun, dt=0.1, kf_period=0.1, angle=lambda t: rate * t)
+        s300, s600 = cov.sigma[[cov.index(300.0), cov.index(600.0)], 4] / ARCMIN
         assert _quoted(s300, w300, 1) and _quoted(s600, w600, 1), (r, s300, s600)
     # level: below 0.5' by 60 s (acceptance 2), from the accelerometer bias limit 0.34'
-    lvl = covariance_analysis(60.0).at(60.0)[2:4] / ARCMIN
+    lvl = static_covariance(60.0).sigma[-1, 2:4] / ARCMIN
     assert np.all(lvl < 0.5) and np.all(lvl > 100.0 * MICRO_G / 9.8 / ARCMIN * 0.99)
 
 
@@ -349,13 +337,16 @@ def test_strapdown_on_a_reversing_tilted_table_keeps_attitude_and_velocity() -> 
     dth, dv = _col(d, "imu.dtheta_meas_b"), _col(d, "imu.dv_meas_b")
     rpy, angle = _col(d, "base.rpy"), d["table.angle"]
     c_s_t = euler_to_dcm_3(TILT_MOUNT)
-    nav = Strapdown(euler_to_dcm_3(rpy[0]) @ table_dcm(angle[0]) @ c_s_t, lat, 0.0, c_s_t[2, :])
+    c0 = euler_to_dcm_3(rpy[0]) @ table_dcm(angle[0]) @ c_s_t
+    nav = Strapdown(c0, lat, 0.0, options=STATIC_BASE, table_axis=c_s_t[2, :])
     worst = 0.0
     for k in range(1, len(d)):
         nav.step(dth[k], dv[k], h)
         if k % 50 == 0:
             c_b_n = nav.C_s_n @ c_s_t.T @ table_dcm(angle[k]).T
-            worst = max(worst, float(np.max(np.abs(dcm_rotvec(c_b_n @ euler_to_dcm_3(rpy[k]).T)))))
+            worst = max(
+                worst, float(np.max(np.abs(dcm_to_rotvec_3(c_b_n @ euler_to_dcm_3(rpy[k]).T))))
+            )
     assert worst < 0.01 * ARCMIN
     assert np.max(np.abs(nav.v_n)) < 5e-3
 
@@ -380,11 +371,11 @@ def test_truth_plus_offset_start_and_filter_sigma_equals_the_covariance_analysis
     np.testing.assert_allclose(_col(d, "align.phi_err")[0], [60.0, -60.0, 120.0], atol=1e-9)
     # heading error ~ phi_D for a nearly level base
     assert _col(d, "align.rpy_err")[0, 2] == pytest.approx(120.0, abs=1.0)
-    cov = covariance_analysis(120.0, base_rpy=np.array([0.3, -0.5, 30.0]) * DEG, coriolis=True)
+    cov = static_covariance(120.0, base_rpy=np.array([0.3, -0.5, 30.0]) * DEG, coriolis=True)
     for t in (30.0, 60.0, 120.0):
         i = int(round(t / 0.1))
         np.testing.assert_allclose(
-            _col(d, "align.phi_sigma")[i], cov.at(t)[2:5] / ARCMIN, rtol=2e-3
+            _col(d, "align.phi_sigma")[i], cov.sigma[cov.index(t), 2:5] / ARCMIN, rtol=2e-3
         )
     # a perfect IMU, no measurement noise: the errors stay inside the filter's 3-sigma
     # while the heading converges (the level errors follow the heading error through

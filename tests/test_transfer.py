@@ -1,10 +1,10 @@
-"""Tests of the seed-001 transfer-alignment filter (cosim/alignment/transfer.py).
+"""Tests of the seed-001 transfer-alignment filter (cosim/alignment/transfer*.py).
 
 The UKF itself is tested in tests/test_unscented.py (on a linear model the UKF equals the
 linear KF, x and P to 1e-9 after each step: ``test_ukf_equals_kf_on_a_linear_model``);
 here: the error model against its linearisation and against the mechanisation, the
-strapdown and master-rate accuracy, the covariance analysis against the issue's figures,
-and closed-loop runs of the block in the scenario.
+strapdown (cosim.alignment.nav) and master-rate accuracy, the covariance analysis against
+the issue's figures, and closed-loop runs of the block in the scenario.
 """
 
 from __future__ import annotations
@@ -16,20 +16,15 @@ import numpy as np
 import pytest
 from scipy.stats import chi2
 
-from cosim.alignment.transfer import (
-    ARCMIN,
-    DEG,
-    G0,
+from cosim.alignment.nav import Strapdown, euler_rate_matrix, euler_rate_matrix_inv
+from cosim.alignment.transfer import TransferAlignment
+from cosim.alignment.transfer_analysis import transfer_covariance
+from cosim.alignment.transfer_model import (
     PeriodSums,
-    SlaveStrapdown,
     StateLayout,
-    TransferAlignment,
     TransferConfigError,
     TransferRuntimeError,
     TransferTuning,
-    covariance_analysis,
-    euler_rate_matrix,
-    euler_rate_matrix_inv,
     linear_error_model,
     master_rate,
     propagate,
@@ -37,7 +32,7 @@ from cosim.alignment.transfer import (
 )
 from cosim.estimation import van_loan
 from cosim.scenario import build_master, load_scenario
-from models.constants import OMEGA_IE
+from models.constants import ARCMIN, DEG, G0, OMEGA_IE
 from models.conventions import dcm_to_euler, dcm_to_rotvec, euler_to_dcm
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "transfer_alignment.toml"
@@ -156,12 +151,12 @@ def test_strapdown_reproduces_the_slave_truth(truth_record: dict[str, np.ndarray
     """
     rec = truth_record
     h = float(rec["h"])
-    sd = SlaveStrapdown(euler_to_dcm(rec["lever.rpy_s"][0]), rec["lever.v_n_s"][0], LAT)
+    sd = Strapdown(euler_to_dcm(rec["lever.rpy_s"][0]), LAT, 0.0, rec["lever.v_n_s"][0])
     att, vel = [], []
     for k in range(1, len(rec["time"])):
         sd.step(rec["imu.dtheta_meas_b"][k], rec["imu.dv_meas_b"][k], h)
-        att.append(dcm_to_rotvec(sd.C @ euler_to_dcm(rec["lever.rpy_s"][k]).T))
-        vel.append(sd.v - rec["lever.v_n_s"][k])
+        att.append(dcm_to_rotvec(sd.C_s_n @ euler_to_dcm(rec["lever.rpy_s"][k]).T))
+        vel.append(sd.v_n - rec["lever.v_n_s"][k])
     assert np.max(np.abs(att)) / ARCMIN < 0.01
     assert np.max(np.abs(vel)) < 1e-3
 
@@ -182,15 +177,16 @@ def test_nonlinear_model_predicts_the_mechanisation_with_large_errors(
     rec = truth_record
     h = float(rec["h"])
     lay = StateLayout(False)
-    a = SlaveStrapdown(euler_to_dcm(rec["lever.rpy_s"][0]), rec["lever.v_n_s"][0], LAT)
-    b = SlaveStrapdown(euler_to_dcm(rec["ship.rpy"][0]), rec["lever.v_n_s"][0], LAT)
+    a = Strapdown(euler_to_dcm(rec["lever.rpy_s"][0]), LAT, 0.0, rec["lever.v_n_s"][0])
+    b = Strapdown(euler_to_dcm(rec["ship.rpy"][0]), LAT, 0.0, rec["lever.v_n_s"][0])
     nab = np.array([3e-4, -2e-4, 1e-4]) * G0
-    b.nabla = -nab
+    b.accel_bias = -nab
+    sums = PeriodSums(lat=b.lat, height=b.height)
 
     def actual() -> np.ndarray:
         x = np.zeros(lay.n)
-        x[lay.att] = dcm_to_euler(b.C @ a.C.T)
-        x[lay.dv] = b.v - a.v
+        x[lay.att] = dcm_to_euler(b.C_s_n @ a.C_s_n.T)
+        x[lay.dv] = b.v_n - a.v_n
         x[lay.dl] = b.lat - a.lat
         x[lay.nabla] = nab
         return x
@@ -201,19 +197,21 @@ def test_nonlinear_model_predicts_the_mechanisation_with_large_errors(
     for k in range(1, len(rec["time"])):
         a.step(rec["imu.dtheta_meas_b"][k], rec["imu.dv_meas_b"][k], h)
         b.step(rec["imu.dtheta_meas_b"][k], rec["imu.dv_meas_b"][k], h)
+        sums.add(b, h)
         if k % 10:
             continue
         x1 = actual()
-        xp = propagate(x0, b.sums, lay)
+        xp = propagate(x0, sums, lay)
         err_att = max(err_att, float(np.max(np.abs(xp[lay.att] - x1[lay.att]))))
         err_v = max(err_v, float(np.max(np.abs(xp[lay.dv] - x1[lay.dv]))))
-        T = b.sums.T
-        f_mean = b.sums.dv_f / T
-        A = linear_error_model(f_mean, b.sums.c_int / T, b.sums.v_int / T, b.lat, 0.0, lay)
+        T = sums.T
+        f_mean = sums.dv_f / T
+        A = linear_error_model(f_mean, sums.c_int / T, sums.v_int / T, b.lat, 0.0, lay)
         x_lin = x0 + A @ x0 * T
         err_lin = max(err_lin, float(np.max(np.abs(x_lin[lay.dv] - x1[lay.dv]))))
-        a.start_period()
-        b.start_period()
+        a.refresh()
+        b.refresh()
+        sums = PeriodSums(lat=b.lat, height=b.height)
         x0 = x1
     assert err_att / ARCMIN < 1e-3
     assert err_v < 1e-4
@@ -269,16 +267,18 @@ def test_covariance_analysis_matches_the_issue_figures() -> None:
     sigmas. Also: bias/g = 1.03' bounds the level from above (what the ship's motion
     separates is little), and the flexure states never reduce the uncertainty.
     """
-    rigid = covariance_analysis(120.0, dt=0.25)
-    flex = covariance_analysis(120.0, dt=0.25, flexure=True)
-    i30, i60, i120 = rigid.at(30.0), rigid.at(60.0), rigid.at(120.0)
-    assert 4.5 * 0.9 <= rigid.sigma_nav[i30, 2] <= 4.5 * 1.1
-    assert 3.1 * 0.9 <= rigid.sigma_nav[i60, 2] <= 3.1 * 1.1
-    assert np.all((rigid.sigma_nav[i30, :2] >= 0.80) & (rigid.sigma_nav[i30, :2] <= 1.00))
-    assert np.all((rigid.sigma_nav[i120, :2] >= 0.55) & (rigid.sigma_nav[i120, :2] <= 0.85))
+    rigid = transfer_covariance(120.0, dt=0.25)
+    flex = transfer_covariance(120.0, dt=0.25, flexure=True)
+    i30, i60, i120 = rigid.index(30.0), rigid.index(60.0), rigid.index(120.0)
+    nav = rigid.sigma[:, StateLayout.att] / ARCMIN
+    nav_flex = flex.sigma[:, StateLayout.att] / ARCMIN
+    assert 4.5 * 0.9 <= nav[i30, 2] <= 4.5 * 1.1
+    assert 3.1 * 0.9 <= nav[i60, 2] <= 3.1 * 1.1
+    assert np.all((nav[i30, :2] >= 0.80) & (nav[i30, :2] <= 1.00))
+    assert np.all((nav[i120, :2] >= 0.55) & (nav[i120, :2] <= 0.85))
     bias_over_g = 3e-4 / ARCMIN
-    assert np.all(rigid.sigma_nav[:, :2][rigid.time >= 30.0] < bias_over_g)
-    assert np.all(flex.sigma_nav[i120] >= rigid.sigma_nav[i120] - 1e-6)
+    assert np.all(nav[:, :2][rigid.time >= 30.0] < bias_over_g)
+    assert np.all(nav_flex[i120] >= nav[i120] - 1e-6)
 
 
 def test_block_rejects_bad_configuration() -> None:

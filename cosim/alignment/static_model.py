@@ -1,0 +1,359 @@
+"""Error model of the stationary self-alignment (seed 003): 10-state psi-angle KF.
+
+Frames (``models.conventions``): ``n`` NED, ``b`` the base (FRD), ``t`` the table
+(rotated by the encoder angle ``gamma`` about the base z axis), ``s`` the sensors
+(``C_s_t`` from the table mounting)::
+
+    C_s_n = C_b_n Rz(gamma) C_s_t,      C_t_n = C_b_n Rz(gamma)
+
+Without a turntable ``gamma = 0`` and the mounting is zero, so ``s = t = b``.
+
+The static-base psi-angle error model
+-------------------------------------
+The computed attitude is ``C^_s_n = (I - [psi x]) C_s_n`` (``psi`` = misalignment of
+the computed navigation frame, NED), the computed velocity ``v^ = v + dv``. The
+mechanisation (:data:`cosim.alignment.nav.STATIC_BASE`) is
+``v^' = C^_s_n f~_s + g_n - 2 w_ie x v^`` and ``C^' = C^ [w~_is x] - [w_ie x] C^`` with
+the measured ``f~ = f + nabla``, ``w~ = w + eps``. Subtracting the true equations and
+keeping first-order terms, on a stationary base (``v = 0``, ``f_n = [0, 0, -g]``,
+transport rate zero)::
+
+    dv'  = f_n x psi - 2 w_ie x dv + C_t_n nabla_t
+    psi' = -w_ie x psi - C_t_n eps_t
+
+Component-wise, with ``W_N = W cos L``, ``W_D = -W sin L`` and only the horizontal
+velocity (the vertical channel is not mechanised: ``v_D = 0``)::
+
+    dv_N'  =  g psi_E - 2 W sin L dv_E + (C_t_n nabla_t)_N
+    dv_E'  = -g psi_N + 2 W sin L dv_N + (C_t_n nabla_t)_E
+    psi_N' = -W sin L psi_E                - (C_t_n eps_t)_N
+    psi_E' =  W sin L psi_N + W cos L psi_D - (C_t_n eps_t)_E
+    psi_D' = -W cos L psi_E                - (C_t_n eps_t)_D
+
+The state is ``x = [dv_N, dv_E, psi_N, psi_E, psi_D, nabla_x, nabla_y, eps_x, eps_y,
+eps_z]`` (SI: m/s, rad, m/s2, rad/s). The sensor errors are random constants in the
+*table* frame: ``nabla_t = C_s_t nabla_s``, ``eps_t = C_s_t eps_s``. On a level base
+the horizontal part of ``C_t_n nabla_t`` depends on ``nabla_x, nabla_y`` only, so the
+10-state model holds for any tilted mounting of the sensors on the table (seed 003's
+rate-biasing mount); without a table ``t = s = b`` and these are the paper's states.
+With the table turning, ``C_t_n = C_b_n Rz(gamma(t))`` is time varying: this
+modulation makes ``eps_x, eps_y, nabla_x, nabla_y`` observable (rank 10); on a fixed
+base the rank is 7 (``psi_D`` cannot be told from ``eps_E``, nor the level angles
+from ``nabla``), hence the heading limit ``eps_E / (W cos L)`` (6.46' for 0.02 deg/h
+at 45 deg, :func:`cosim.alignment.coarse.heading_limit`). Noise: ``w = [w_a (2), w_g
+(3)]`` enters ``dv`` and ``psi`` directly (``G = [I_5; 0]``), ``Qc = diag(q_accel^2 I_2,
+q_gyro^2 I_3)`` (seed 003's Q as densities, per second). Measurement:
+``z = v^_NE = H x + n``, ``H = [I_2, 0]``, ``R = r_vel^2 I_2`` every ``kf_period``.
+
+Discretisation in the block (every step ``h``): ``Phi = I + F h + (F h)^2 / 2``
+(the chains ``dv <- psi <- eps`` need the second-order term at ``h = 0.1 s``),
+``Qd = (Phi G Qc G^T Phi^T + G Qc G^T) h / 2``, ``F`` with ``C_t_n`` averaged over
+the step. The covariance analysis (:func:`static_covariance`) is independent of it:
+exact Van Loan discretisation of the same continuous model, on the one covariance
+loop :func:`cosim.estimation.covariance.covariance_analysis`.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from cosim.alignment.nav import AlignmentConfigError, AlignmentError
+from cosim.estimation import van_loan
+from cosim.estimation.covariance import CovarianceHistory, covariance_analysis
+from models.constants import DEG, DEG_PER_HOUR, MICRO_G, OMEGA_IE
+from models.conventions import euler_to_dcm_3
+from models.earth import gravity
+
+FloatArray = NDArray[np.float64]
+
+#: State names, in order.
+STATES = (
+    "dv_N",
+    "dv_E",
+    "psi_N",
+    "psi_E",
+    "psi_D",
+    "nabla_x",
+    "nabla_y",
+    "eps_x",
+    "eps_y",
+    "eps_z",
+)
+N_STATES = 10
+#: The misalignment ``psi`` in the state.
+ATT = slice(2, 5)
+
+
+# ------------------------------------------------------------------ tuning
+@dataclass(frozen=True)
+class FilterTuning:
+    """Initial covariance, process and measurement noise of the 10-state filter.
+
+    Defaults are seed 003's P0, Q and R.
+
+    Attributes
+    ----------
+    p0_vel : float
+        Initial velocity-error sigma [m/s] (N and E).
+    p0_att : tuple of float
+        Initial misalignment sigmas ``(N, E, D)`` [rad].
+    p0_accel_bias : float
+        Accelerometer bias sigma [m/s2] (x and y of the table frame).
+    p0_gyro_drift : float
+        Gyro drift sigma [rad/s] (x, y, z of the table frame).
+    q_accel : float
+        Accelerometer white-noise density [m/s/sqrt(s)] (seed 003: 50 ug per second).
+    q_gyro : float
+        Gyro white-noise density [rad/sqrt(s)] (seed 003: 0.01 deg/h per second).
+    r_vel : float
+        Zero-velocity measurement sigma [m/s] per update.
+    """
+
+    p0_vel: float = 0.1
+    p0_att: tuple[float, float, float] = (DEG, DEG, DEG)
+    p0_accel_bias: float = 100.0 * MICRO_G
+    p0_gyro_drift: float = 0.02 * DEG_PER_HOUR
+    q_accel: float = 50.0 * MICRO_G
+    q_gyro: float = 0.01 * DEG_PER_HOUR
+    r_vel: float = 0.1
+
+    def P0(self) -> FloatArray:
+        """Initial covariance, shape (10, 10), SI units squared."""
+        d = [self.p0_vel] * 2 + list(self.p0_att) + [self.p0_accel_bias] * 2
+        d += [self.p0_gyro_drift] * 3
+        return np.diag(np.square(np.asarray(d, dtype=float)))
+
+    def Qc(self) -> FloatArray:
+        """Continuous noise intensity of ``[w_a (N, E), w_g (N, E, D)]``, shape (5, 5)."""
+        return np.diag([self.q_accel**2] * 2 + [self.q_gyro**2] * 3)
+
+    def R(self) -> FloatArray:
+        """Measurement noise covariance, shape (2, 2) [(m/s)^2]."""
+        return np.eye(2) * self.r_vel**2
+
+
+#: Seed 003's P0, Q and R.
+SEED003 = FilterTuning()
+
+
+# ------------------------------------------------------------------ small helpers
+def quad_form_inv3(e: ArrayLike, P: ArrayLike) -> float:
+    """``e^T P^-1 e`` for a 3-vector and a 3x3 SPD matrix (explicit Cholesky, no LAPACK call).
+
+    Parameters
+    ----------
+    e : array_like, shape (3,)
+        Error vector, e.g. the attitude error ``phi_err`` [rad], NED.
+    P : array_like, shape (3, 3)
+        Its covariance, symmetric positive definite, e.g. ``P_att`` [rad^2]; only the
+        upper triangle is read.
+
+    Returns
+    -------
+    float
+        The squared Mahalanobis distance (dimensionless).
+
+    Raises
+    ------
+    AlignmentError
+        When ``P`` is not positive definite.
+    """
+    (a, b, c), (_, d, f), (_, _, k) = np.asarray(P, dtype=float).tolist()
+    e1, e2, e3 = np.asarray(e, dtype=float).tolist()
+    try:
+        l11 = math.sqrt(a)
+        l21, l31 = b / l11, c / l11
+        l22 = math.sqrt(d - l21 * l21)
+        l32 = (f - l31 * l21) / l22
+        l33 = math.sqrt(k - l31 * l31 - l32 * l32)
+    except (ValueError, ZeroDivisionError) as exc:
+        raise AlignmentError("attitude covariance is not positive definite") from exc
+    y1 = e1 / l11
+    y2 = (e2 - l21 * y1) / l22
+    y3 = (e3 - l31 * y1 - l32 * y2) / l33
+    return y1 * y1 + y2 * y2 + y3 * y3
+
+
+def table_dcm(gamma: float) -> FloatArray:
+    """``Rz(gamma)``: table to base for encoder angle ``gamma`` [rad], shape (3, 3).
+
+    Parameters
+    ----------
+    gamma : float
+        Table encoder angle, a right-handed turn about the base z axis (down) [rad].
+
+    Returns
+    -------
+    ndarray, shape (3, 3)
+        ``C_t_b`` (scalar math, like :func:`models.conventions.rot_z`).
+    """
+    c, s = math.cos(gamma), math.sin(gamma)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+# ------------------------------------------------------------------ error model
+def error_model(C_t_n: ArrayLike, lat: float, h: float = 0.0, coriolis: bool = True) -> FloatArray:
+    """Continuous system matrix ``F`` of the 10-state static-base psi-angle model.
+
+    Parameters
+    ----------
+    C_t_n : array_like, shape (3, 3)
+        Table (carrier of the sensors) to NED; the base attitude without a table.
+    lat : float
+        Latitude [rad].
+    h : float
+        Height [m].
+    coriolis : bool
+        Include the ``-2 w_ie x dv`` terms (the mechanisation has them; their effect
+        on the alignment is below 0.1 %).
+
+    Returns
+    -------
+    ndarray, shape (10, 10)
+        ``x' = F x + G w``, states :data:`STATES` (SI).
+    """
+    c = np.asarray(C_t_n, dtype=float)
+    g = float(gravity(lat, h))
+    sl, cl = math.sin(lat), math.cos(lat)
+    F = np.zeros((N_STATES, N_STATES))
+    F[0, 3] = g
+    F[1, 2] = -g
+    if coriolis:
+        F[0, 1] = -2.0 * OMEGA_IE * sl
+        F[1, 0] = 2.0 * OMEGA_IE * sl
+    F[2, 3] = -OMEGA_IE * sl
+    F[3, 2] = OMEGA_IE * sl
+    F[3, 4] = OMEGA_IE * cl
+    F[4, 3] = -OMEGA_IE * cl
+    F[0:2, 5:7] = c[0:2, 0:2]
+    F[2:5, 7:10] = -c
+    return F
+
+
+def noise_input() -> FloatArray:
+    """``G``, shape (10, 5): accelerometer noise into ``dv``, gyro noise into ``psi``."""
+    G = np.zeros((N_STATES, 5))
+    G[0:5, 0:5] = np.eye(5)
+    return G
+
+
+def measurement_matrix() -> FloatArray:
+    """``H``, shape (2, 10): the zero-velocity measurement sees ``dv_N, dv_E``."""
+    H = np.zeros((2, N_STATES))
+    H[0, 0] = H[1, 1] = 1.0
+    return H
+
+
+def discretize_taylor(F: FloatArray, Gq: FloatArray, h: float) -> tuple[FloatArray, FloatArray]:
+    """The block's per-step discretisation: ``Phi = I + A + A^2/2`` (``A = F h``), trapezoid Qd.
+
+    Parameters
+    ----------
+    F : ndarray, shape (n, n)
+        System matrix [1/s].
+    Gq : ndarray, shape (n, n)
+        ``G Qc G^T`` [state units^2 / s].
+    h : float
+        Step [s].
+
+    Returns
+    -------
+    Phi, Qd : ndarray, shape (n, n)
+        Transition matrix and process-noise covariance of the step.
+    """
+    A = F * h
+    Phi = np.eye(F.shape[0]) + A + 0.5 * (A @ A)
+    Qd = 0.5 * h * (Phi @ Gq @ Phi.T + Gq)
+    return Phi, Qd
+
+
+# ------------------------------------------------------------------ covariance analysis
+def static_covariance(
+    t_end: float,
+    *,
+    tuning: FilterTuning = SEED003,
+    lat: float = 45.0 * DEG,
+    h: float = 0.0,
+    dt: float = 0.1,
+    kf_period: float = 0.1,
+    angle: Callable[[FloatArray], FloatArray] | None = None,
+    base_rpy: ArrayLike = (0.0, 0.0, 0.0),
+    coriolis: bool = False,
+    record_every: int = 1,
+) -> CovarianceHistory:
+    """Covariance of the 10-state filter over ``[0, t_end]``, from the linear model alone.
+
+    Every ``dt`` the covariance is propagated with the exact (Van Loan) discretisation
+    of the continuous model, ``F`` evaluated with the table at mid-step; every
+    ``kf_period`` the zero-velocity update follows (the estimators' Joseph update).
+
+    Parameters
+    ----------
+    t_end : float
+        Duration [s] (a multiple of ``dt``).
+    tuning : FilterTuning
+        P0, Q, R (default seed 003's).
+    lat, h : float
+        Latitude [rad], height [m].
+    dt : float
+        Propagation step [s]; ``kf_period`` must be a multiple of it.
+    kf_period : float
+        Measurement period [s].
+    angle : callable, optional
+        Encoder angle ``gamma(t)`` [rad] for an array of times [s] (e.g.
+        ``lambda t: rate * t`` for continuous rotation, or ``Turntable.profile``'s
+        angle); None: no table.
+    base_rpy : array_like, shape (3,)
+        Base attitude [rad] (the result is insensitive to the heading).
+    coriolis : bool
+        Include the Coriolis terms (default False: the model as written in the issue).
+    record_every : int
+        Keep every k-th step.
+
+    Returns
+    -------
+    CovarianceHistory
+        Times after the start of fine alignment (0 first), states :data:`STATES`.
+
+    Raises
+    ------
+    AlignmentConfigError
+        When the steps do not fit.
+    """
+    n = int(round(t_end / dt))
+    k_upd = int(round(kf_period / dt))
+    if n < 1 or abs(n * dt - t_end) > 1e-9 * max(1.0, t_end):
+        raise AlignmentConfigError(f"t_end = {t_end} s is not a whole number of dt = {dt} s")
+    if k_upd < 1 or abs(k_upd * dt - kf_period) > 1e-9 * kf_period:
+        raise AlignmentConfigError(f"kf_period = {kf_period} s is not a multiple of dt = {dt} s")
+    c_b_n = euler_to_dcm_3(base_rpy)
+    G = noise_input()
+    Qc = tuning.Qc()
+    update = (measurement_matrix(), tuning.R())
+    mid = (np.arange(n) + 0.5) * dt
+    gammas = np.zeros(n) if angle is None else np.asarray(angle(mid), dtype=float)
+    # F depends on the encoder angle only through Rz(gamma): reversing or continuous
+    # profiles revisit the same angles, so the discretisations are cached by angle.
+    cache: dict[float, tuple[FloatArray, FloatArray]] = {}
+
+    def transition(i: int) -> tuple[FloatArray, FloatArray]:
+        key = round(float(gammas[i]) % (2.0 * math.pi), 12)
+        if key not in cache:
+            F = error_model(c_b_n @ table_dcm(gammas[i]), lat, h, coriolis)
+            cache[key] = van_loan(F, G, Qc, dt)
+        return cache[key]
+
+    return covariance_analysis(
+        tuning.P0(),
+        n,
+        dt,
+        transition,
+        lambda i: update if (i + 1) % k_upd == 0 else None,
+        record_every=record_every,
+        names=STATES,
+    )

@@ -1,0 +1,229 @@
+"""Linear covariance analysis of transfer alignment along a moored ship's motion (seed 001).
+
+Independent of the simulation and of the filter's bookkeeping: the ship's motion in
+closed form (:func:`ship_truth`), the slave's kinematics from it, the small-error model
+of :func:`cosim.alignment.transfer_model.linear_error_model` discretised with Van Loan,
+on the one covariance loop :func:`cosim.estimation.covariance.covariance_analysis`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from cosim.alignment.transfer_model import (
+    StateLayout,
+    TransferConfigError,
+    TransferTuning,
+    flexure_matrix,
+    linear_error_model,
+)
+from cosim.estimation import van_loan
+from cosim.estimation.covariance import CovarianceHistory, covariance_analysis
+from models.constants import DEG, OMEGA_IE
+from models.conventions import cross, euler_to_dcm
+from models.earth import euler_motion_truth
+from models.lever_arm import r0_matrix
+
+FloatArray = NDArray[np.float64]
+
+_I3 = np.eye(3)
+_ZERO3 = (0.0, 0.0, 0.0)
+
+
+def ship_truth(
+    t: ArrayLike,
+    *,
+    lat: float = 30.0 * DEG,
+    amp: ArrayLike = (12.5 * DEG, 10.0 * DEG, 5.0 * DEG),
+    period: ArrayLike = (12.0, 6.0, 8.0),
+    phase: ArrayLike = _ZERO3,
+    rpy_mean: ArrayLike = _ZERO3,
+) -> dict[str, FloatArray]:
+    """Closed-form moored-ship motion (the equations of :mod:`models.ship_motion`).
+
+    Parameters
+    ----------
+    t : array_like, shape (m,)
+        Times [s].
+    lat : float
+        Latitude [rad].
+    amp, period, phase, rpy_mean : array_like, shape (3,)
+        Roll/pitch/yaw amplitude [rad], period [s], phase [rad], mean [rad].
+
+    Returns
+    -------
+    dict
+        ``rpy, rpy_dot`` (m, 3); ``C_b_n`` (m, 3, 3); ``omega_ib_b, omega_dot_b, f_b``
+        (m, 3) in master axes; ``omega_nb_b`` (m, 3).
+    """
+    tt = np.atleast_1d(np.asarray(t, dtype=float))
+    per = np.asarray(period, dtype=float)
+    w = np.where(per > 0.0, 2.0 * np.pi / np.where(per > 0.0, per, 1.0), 0.0)
+    a = np.where(per > 0.0, np.asarray(amp, dtype=float), 0.0)
+    arg = tt[:, None] * w + np.asarray(phase, dtype=float)
+    rpy = np.asarray(rpy_mean, dtype=float) + a * np.sin(arg)
+    rpy_dot = a * w * np.cos(arg)
+    rpy_ddot = -a * w**2 * np.sin(arg)
+    truth = euler_motion_truth(rpy, rpy_dot, rpy_ddot, None, None, None, lat, 0.0, 0.0)
+    w_ie_b = np.einsum(
+        "mji,j->mi",
+        truth.C_b_n,
+        np.array([OMEGA_IE * math.cos(lat), 0.0, -OMEGA_IE * math.sin(lat)]),
+    )
+    return {
+        "rpy": rpy,
+        "rpy_dot": rpy_dot,
+        "C_b_n": truth.C_b_n,
+        "omega_ib_b": truth.omega_ib_b,
+        "omega_dot_b": truth.omega_dot_b,
+        "omega_eb_b": truth.omega_ib_b - w_ie_b,
+        "f_b": truth.f_b,
+    }
+
+
+def _repeat_steps(period: ArrayLike, dt: float) -> int:
+    """Steps after which the ship's motion repeats (0 if not a whole number of steps).
+
+    The least common multiple of the active periods, on a 1 microsecond grid.
+    """
+    us = [int(round(p * 1e6)) for p in np.asarray(period, dtype=float) if p > 0.0]
+    if not us or any(
+        abs(u - p * 1e6) > 1e-3
+        for u, p in zip(us, [p for p in np.asarray(period, dtype=float) if p > 0.0], strict=True)
+    ):
+        return 0
+    lcm = math.lcm(*us) * 1e-6
+    n = lcm / dt
+    return int(round(n)) if abs(n - round(n)) < 1e-9 * max(1.0, n) and n >= 1 else 0
+
+
+def transfer_covariance(
+    t_end: float = 120.0,
+    *,
+    r0: ArrayLike = (10.0, 10.0, 5.0),
+    mount_rpy: ArrayLike = (1.0 * DEG, 1.0 * DEG, 30.0 * DEG),
+    lat: float = 30.0 * DEG,
+    amp: ArrayLike = (12.5 * DEG, 10.0 * DEG, 5.0 * DEG),
+    period: ArrayLike = (12.0, 6.0, 8.0),
+    tuning: TransferTuning | None = None,
+    flexure: bool = False,
+    update_period: float = 0.5,
+    dt: float = 0.1,
+) -> CovarianceHistory:
+    """Linear covariance analysis of velocity-matching transfer alignment along the ship's motion.
+
+    The ship's motion is evaluated in closed form (:func:`ship_truth`), the slave's
+    kinematics from it (rigid lever arm ``r_0``, mounting ``mount_rpy``), and the
+    small-error model is used in its **slave-velocity form** ``y = [dL, dv, phi, (xi),
+    nabla, eps]`` (the filter uses ``dV = dv + M xi``), where the flexure enters only
+    the measurement::
+
+        z = dv + M(t) xi + n,   E[n n^T] = r_vel^2 I    every update_period
+
+    The model (:func:`~cosim.alignment.transfer_model.linear_error_model` without the
+    transformation) is held constant over ``dt`` at the interval's midpoint and
+    discretised exactly with :func:`cosim.estimation.van_loan` (noise: accelerometer
+    ``q_accel`` on ``dv``, gyro ``q_gyro`` on ``phi``, flexure ``eta``). Updates are
+    the estimators' Joseph update.
+
+    Parameters
+    ----------
+    t_end : float
+        Duration [s].
+    r0 : array_like, shape (3,)
+        Lever arm, master axes [m].
+    mount_rpy : array_like, shape (3,)
+        Slave mounting [rad].
+    lat : float
+        Latitude [rad].
+    amp, period : array_like, shape (3,)
+        Ship roll/pitch/yaw amplitude [rad] and period [s].
+    tuning : TransferTuning, optional
+        P0, noises (default seed 001's).
+    flexure : bool
+        Include the flexure states (and the flexure part of the measurement).
+    update_period : float
+        Velocity-matching period [s].
+    dt : float
+        Propagation step [s]; must divide ``update_period``.
+
+    Returns
+    -------
+    CovarianceHistory
+        Posterior covariance after each update (times ``j update_period``, SI), state
+        ``[dL, dv, phi, (xi), nabla, eps]`` (names of :class:`StateLayout`).
+
+    Raises
+    ------
+    TransferConfigError
+        When ``dt`` does not divide ``update_period``.
+    """
+    tuning = tuning or TransferTuning()
+    layout = StateLayout(flexure)
+    n = layout.n
+    k_up = int(round(update_period / dt))
+    if k_up < 1 or abs(k_up * dt - update_period) > 1e-9:
+        raise TransferConfigError(f"dt ({dt}) must divide update_period ({update_period})")
+    n_steps = int(round(t_end / dt))
+    r0 = np.asarray(r0, dtype=float)
+    R0 = r0_matrix(r0)
+    c_s_b = euler_to_dcm(np.asarray(mount_rpy, dtype=float))
+    t_mid = (np.arange(n_steps) + 0.5) * dt
+    t_up = np.arange(1, n_steps // k_up + 1) * update_period
+    mid = ship_truth(t_mid, lat=lat, amp=amp, period=period)
+    up = ship_truth(t_up, lat=lat, amp=amp, period=period)
+    w, wd = mid["omega_ib_b"], mid["omega_dot_b"]
+    wr = np.sum(w * r0, axis=-1, keepdims=True)
+    f_p = mid["f_b"] + cross(wd, r0) + w * wr - r0 * np.sum(w * w, axis=-1, keepdims=True)
+    f_mid = np.einsum("mij,mj->mi", mid["C_b_n"], f_p)
+    v_mid = np.einsum("mij,mj->mi", mid["C_b_n"], cross(mid["omega_eb_b"], r0))
+    cs_mid = mid["C_b_n"] @ c_s_b
+    G = np.zeros((n, 9))
+    G[layout.dv, 0:3] = _I3
+    G[layout.att, 3:6] = _I3
+    Qc = np.zeros((9, 9))
+    Qc[0:3, 0:3] = tuning.q_accel**2 * _I3
+    Qc[3:6, 3:6] = tuning.q_gyro**2 * _I3
+    if flexure:
+        _, Gf, Qf = tuning.flexure_model()
+        G[layout.xi, 6:9] = Gf
+        Qc[6:9, 6:9] = Qf
+    R = tuning.r_vel**2 * _I3
+    # The motion repeats with the least common multiple of the periods (24 s for seed
+    # 001): the discretised model of step k equals that of step k - n_rep.
+    n_rep = _repeat_steps(period, dt)
+    cache: dict[int, tuple[FloatArray, FloatArray]] = {}
+
+    def transition(k: int) -> tuple[FloatArray, FloatArray]:
+        key = k % n_rep if n_rep else k
+        if key not in cache:
+            A = linear_error_model(f_mid[k], cs_mid[k], v_mid[k], lat, 0.0, layout, tuning=tuning)
+            cache[key] = van_loan(A, G, Qc, dt)
+        return cache[key]
+
+    def measurement(k: int) -> tuple[FloatArray, FloatArray] | None:
+        if (k + 1) % k_up:
+            return None
+        H = np.zeros((3, n))
+        H[:, layout.dv] = _I3
+        if flexure:
+            j = (k + 1) // k_up - 1
+            H[:, layout.xi] = flexure_matrix(up["C_b_n"][j], up["omega_eb_b"][j], R0)
+        return H, R
+
+    # slave-velocity form: dv_0 independent of xi_0
+    hist = covariance_analysis(
+        tuning.P0(layout, lat),
+        n_steps,
+        dt,
+        transition,
+        measurement,
+        record_every=k_up,
+        include_start=False,
+        names=layout.names,
+    )
+    return dataclasses.replace(hist, time=t_up)

@@ -1,0 +1,694 @@
+"""Error model of shipboard transfer alignment (seed 001): 19-state nonlinear model.
+
+The filter block is :class:`cosim.alignment.transfer.TransferAlignment`; this module
+holds what it estimates with: the state layout, the statistics, the nonlinear error
+model over one filter period (the UKF's ``fx``), its measurement, the closed-loop
+reset, and the small-error (linear) model of the covariance analysis
+(:mod:`cosim.alignment.transfer_analysis`). Seed 001's nonlinear error model, eq.
+(12)-(30), is rewritten in our frames (NED, FRD) below.
+
+Frames and symbols (:mod:`models.conventions`)
+----------------------------------------------
+``n`` true NED frame at the master, ``n^`` the slave's computed NED frame, ``b`` master
+body (FRD), ``s`` slave body (FRD). ``C_s_n`` true slave attitude, ``C^_s_n`` the slave
+mechanisation's attitude, ``C_b_n`` master attitude (from the master INS). ``r_0`` the
+nominal lever arm from master to slave in master axes, ``theta`` the deck flexure angle
+(master axes, :mod:`models.deck_flexure`), ``R_0`` seed 001's lever-arm matrix
+(:func:`models.lever_arm.r0_matrix`), ``Omega`` earth rate, ``L`` latitude.
+
+Seed 001 works in ENU with a right-forward-up body; its heading is counter-clockwise.
+Every equation below is written directly in NED/FRD (``T = [[0,1,0],[1,0,0],[0,0,-1]]``
+maps one into the other, :data:`models.frames.T_NED_ENU`); where the paper's sign
+conventions differ (its ``psi`` is true-minus-computed, ours is computed-minus-true) it
+says so.
+
+State (19; 13 with ``flexure_states = 0``, the paper's "flexure ignored" case)
+-----------------------------------------------------------------------------
+``x = [dL, dV (3), phi (3), theta (3), theta' (3), nabla (3), eps (3)]``:
+
+* ``dL = L^ - L_s`` relative latitude error of the slave mechanisation [rad] (eq. 12);
+* ``dV = v^ - v_m - v_lr`` the **velocity difference** slave minus master with the rigid
+  lever-arm velocity ``v_lr = C_b_n (omega_eb_b x r_0)`` removed [m/s, NED]: exactly the
+  quantity measured (eq. 15-23 with the rigid lever arm compensated);
+* ``phi = [phi_N, phi_E, phi_D]`` the attitude error, **large heading**: the error rotation
+  ``E = C^_s_n C_s_n^T`` (true -> computed navigation frame, ``C_n^n^`` of eq. 26) is
+  parametrised by its Z-Y-X Euler angles, ``E = Rz(phi_D) Ry(phi_E) Rx(phi_N)``. ``phi_D``
+  is the heading error (any size, kept on the circle by the UKF's angle-aware mean and
+  residual); ``phi_N, phi_E`` are the level errors (small after the first updates, never
+  linearised). Estimate minus truth: the paper's ``psi`` is ``-phi`` for small angles;
+* ``theta, theta'`` deck flexure angle and rate (master axes, eq. 1);
+* ``nabla, eps`` residual accelerometer bias and gyro drift, slave axes (random constants).
+
+Error model (continuous time, exact in ``E``)
+---------------------------------------------
+The mechanisation (below) integrates ``C^' = C^ [w~_is x] - [w^_in x] C^`` and
+``v^' = C^ f~ - (2 w^_ie + w^_en) x v^ + g`` with the measured (bias-compensated) rate
+``w~ = w_is + eps`` and specific force ``f~ = f_s + nabla``, where ``w_is`` and ``f_s``
+are the slave's **true** rate and specific force: they include the flexure rate and the
+lever-arm accelerations, which the slave's sensors measure. Differentiating ``E``::
+
+    E' = [w x] E,   w = C^ eps + (E - I) w^_in - E dw_in                     (eq. 26-29)
+    dw_in = w^_in - w_in = dw_ie + dw_en,
+    dw_ie = Omega [cos L^ - cos L, 0, -(sin L^ - sin L)],   L = L^ - dL     (eq. 18-19)
+    dw_en = [dv_E / R_N, -dv_N / R_M, -dv_E tan L^ / R_N - v^_E dL / (R_N cos^2 L^)]  (eq. 21)
+
+This is eq. (28) with our sign: the paper's ``omega_nn^ = (I - C_n^n^) w_in + dw_in -
+eps - w_fs``. There is **no flexure-rate term** here: ``E`` compares the computed attitude
+with the true, flexed slave attitude, and the flexure rate ``w_fs`` is part of the true
+rate the slave gyros measure and the mechanisation integrates. (The paper measures ``psi``
+against the rigidly mounted slave, which moves ``theta`` from the measurement into
+``psi' = ... - w_fs``; the two are the same model under the time-varying change of
+variables ``psi_rigid = phi + C_b_n theta``.) The slave velocity error
+``dv = v^ - v_s`` (``v_s`` true slave velocity) obeys, exactly in ``E``::
+
+    dv' = (I - E^T) C^ f~ + E^T C^ nabla - (2 w_ie + w_en) x dv - (2 dw_ie + dw_en) x v^   (eq. 23)
+
+(``g^ - g ~ 0``, eq. 22). The true slave velocity is ``v_s = v_m + C_b_n (omega_eb_b x r_p
++ r_p')`` with ``r_p = r_0 + R_0 theta``, ``r_p' = R_0 theta'`` (eq. 10), hence::
+
+    dV = dv + M(t) [theta; theta'],      M(t) = C_b_n [ [omega_eb_b x] R_0,  R_0 ]    (3 x 6)
+
+and ``d/dt (M xi)`` is exactly the flexure part of eq. (11)/(30):
+``C_b_n {(([w x]^2 + [w' x]) R_0 - R_2) theta + (2 [w x] R_0 - R_1) theta' + R_0 eta}``.
+Flexure: ``theta'' = -2 beta theta' - beta^2 theta + eta`` per axis (eq. 1; eq. 30 prints
+``beta^2 theta^2``, a typo), ``beta = 2.146 / tau``, ``E[eta eta] = 4 beta^3 sigma^2``.
+``dL' = dv_N / (R_M + h)`` (eq. 12). ``nabla' = eps' = 0``.
+
+Discrete process model over one filter period ``T`` (the UKF's ``fx``)
+----------------------------------------------------------------------
+Over ``[t, t + T]`` the mechanisation accumulates, from every IMU increment,
+``S_f = int C^ f~ dt``, ``S_C = int C^ dt``, ``S_v = int v^ dt``, ``S_w = int w^_in dt``,
+``S_c = int (2 w^_ie + w^_en) dt``. The error states vary slowly compared with the ship's
+motion, so with ``E0 = E(t)``::
+
+    E1  = exp([(S_C eps + (E0 - I) S_w - E0 dw_in T) x]) E0,     phi1 = euler(E1)
+    dv1 = dv0 + (I - Eb^T) S_f + Eb^T S_C nabla - S_c x dv0 - (2 dw_ie + dw_en) x S_v
+    xi1 = Phi_flex xi0,   dV1 = dv1 + M(t + T) xi1,   dv0 = dV0 - M(t) xi0
+    dL1 = dL0 + (dv0_N + dv1_N) T / (2 (R_M + h))
+
+with ``Eb = (E0 + E1) / 2``. The large-heading nonlinearity is in ``(I - Eb^T) S_f`` (a
+heading error rotates the slave's lever-arm acceleration), in ``Eb^T S_C nabla`` and in
+``(E0 - I) S_w`` (a heading error tilts the computed frame at ``Omega cos L sin(phi_D)``,
+about 1.1 arcmin/s for 30 deg at 30 deg N). Process noise (additive): accelerometer white
+noise ``q_accel^2 T`` on ``dV``, gyro white noise ``q_gyro^2 T`` on ``phi``, the exact flexure
+noise ``Q_flex`` (Van Loan) on ``xi`` and, through ``M(t + T)``, on ``dV``.
+
+Measurement (velocity matching with lever-arm compensation, every ``T``)::
+
+    z = v^ - v_master - C_b_n (omega_eb_b x r_0) = dV + v_noise
+
+``omega_eb_b = omega_nb_b + C_n_b omega_en_n`` comes from the master's attitude: a
+five-point backward difference of ``rotvec(C_b_n(t_k)^T C_b_n(t_k - j h))`` (``j = 0..4``),
+exact for attitudes quartic in time (error ``h^4 |omega^(5)| / 5``, about 1e-8 rad/s at
+``h = 20 ms`` for seed 001's motion; no master rate output is needed). ``h(x) = dV`` is
+linear; the UKF is still used for it (same code path, exact for linear ``h``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import ClassVar
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from cosim.alignment.nav import AlignmentConfigError, Strapdown, euler_rate_matrix, nav_rates
+from models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0, OMEGA_IE
+from models.conventions import (
+    cross,
+    dcm_to_euler,
+    dcm_to_rotvec,
+    euler_to_dcm,
+    rotvec_to_dcm,
+    skew,
+)
+from models.earth import R_M, R_N
+
+FloatArray = NDArray[np.float64]
+
+#: Seed 001's flexure damping rule ``beta = BETA_TAU / tau``.
+BETA_TAU = 2.146
+
+_I3 = np.eye(3)
+
+#: State names of the 19-state model, in order.
+STATES_19 = (
+    "dL",
+    "dV_N",
+    "dV_E",
+    "dV_D",
+    "phi_N",
+    "phi_E",
+    "phi_D",
+    "theta_x",
+    "theta_y",
+    "theta_z",
+    "theta_dot_x",
+    "theta_dot_y",
+    "theta_dot_z",
+    "nabla_x",
+    "nabla_y",
+    "nabla_z",
+    "eps_x",
+    "eps_y",
+    "eps_z",
+)
+
+
+class TransferConfigError(AlignmentConfigError):
+    """A parameter of the transfer-alignment block is invalid (the message says which)."""
+
+
+class TransferRuntimeError(RuntimeError):
+    """The block received inputs it cannot use (e.g. a step that does not divide the period)."""
+
+
+# ----------------------------------------------------------------------------- layout
+@dataclass(frozen=True)
+class StateLayout:
+    """Index layout of the 19-state (``flexure=True``) or 13-state model.
+
+    Attributes
+    ----------
+    flexure : bool
+        Whether the flexure states ``theta, theta'`` are in the state.
+    """
+
+    flexure: bool = True
+
+    @property
+    def n(self) -> int:
+        """State dimension (19 or 13)."""
+        return 19 if self.flexure else 13
+
+    #: Index of ``dL``.
+    dl: ClassVar[int] = 0
+    #: The velocity difference ``dV``.
+    dv: ClassVar[slice] = slice(1, 4)
+    #: The attitude error ``phi``.
+    att: ClassVar[slice] = slice(4, 7)
+    #: Index of the heading error ``phi_D``.
+    heading: ClassVar[int] = 6
+
+    @property
+    def xi(self) -> slice:
+        """``[theta, theta']`` (only with flexure)."""
+        return slice(7, 13)
+
+    @property
+    def nabla(self) -> slice:
+        """Accelerometer bias."""
+        return slice(13, 16) if self.flexure else slice(7, 10)
+
+    @property
+    def eps(self) -> slice:
+        """Gyro drift."""
+        return slice(16, 19) if self.flexure else slice(10, 13)
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """State names in order."""
+        if self.flexure:
+            return STATES_19
+        return STATES_19[:7] + STATES_19[13:]
+
+
+# ----------------------------------------------------------------------------- tuning
+@dataclass(frozen=True)
+class TransferTuning:
+    """Filter statistics: initial covariance, noises, flexure model (SI units).
+
+    Defaults are seed 001's conditions (sec. 5) read as in ``scenarios/transfer_alignment.toml``.
+
+    Attributes
+    ----------
+    p0_pos : float
+        Initial north/east position error behind ``dL`` [m] (the slave starts at the
+        master's latitude: the lever arm).
+    p0_vel : float
+        Initial velocity-difference sigma beyond the flexure part [m/s].
+    p0_level : float
+        Initial level error sigma [rad].
+    p0_heading : float
+        Initial heading error sigma [rad].
+    p0_accel_bias : float
+        Accelerometer bias sigma [m/s2] (seed 001: 3e-4 g).
+    p0_gyro_drift : float
+        Gyro drift sigma [rad/s] (seed 001: 0.01 deg/h).
+    q_accel : float
+        Accelerometer white-noise density [m/s/sqrt(s)] (seed 001's random 5e-5 g per second).
+    q_gyro : float
+        Gyro white-noise density [rad/sqrt(s)] (random 0.001 deg/h per second).
+    r_vel : float
+        Velocity-matching noise per update [m/s].
+    flex_tau : tuple of float
+        Flexure correlation times [s] (600 s).
+    flex_sigma : tuple of float
+        Flexure stationary sigmas [rad] (2 arcmin: the README's seed-001 assumption).
+    """
+
+    p0_pos: float = 15.0
+    p0_vel: float = 0.01
+    p0_level: float = 1.0 * DEG
+    p0_heading: float = 30.0 * DEG
+    p0_accel_bias: float = 3e-4 * G0
+    p0_gyro_drift: float = 0.01 * DEG_PER_HOUR
+    q_accel: float = 5e-5 * G0
+    q_gyro: float = 0.001 * DEG_PER_HOUR
+    r_vel: float = 0.01
+    flex_tau: tuple[float, float, float] = (600.0, 600.0, 600.0)
+    flex_sigma: tuple[float, float, float] = (2.0 * ARCMIN,) * 3
+
+    @property
+    def beta(self) -> FloatArray:
+        """Flexure damping ``beta = 2.146 / tau`` per axis [1/s]."""
+        return BETA_TAU / np.asarray(self.flex_tau, dtype=float)
+
+    def flexure_model(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """Continuous flexure model of ``xi = [theta (3), theta' (3)]``.
+
+        Returns
+        -------
+        F : ndarray, shape (6, 6)
+            ``xi' = F xi + G eta``.
+        G : ndarray, shape (6, 3)
+        Qc : ndarray, shape (3, 3)
+            PSD of ``eta``, ``diag(4 beta^3 sigma^2)`` [rad^2/s^3].
+        """
+        beta = self.beta
+        F = np.zeros((6, 6))
+        F[0:3, 3:6] = _I3
+        F[3:6, 0:3] = -np.diag(beta**2)
+        F[3:6, 3:6] = -np.diag(2.0 * beta)
+        G = np.vstack([np.zeros((3, 3)), _I3])
+        Qc = np.diag(4.0 * beta**3 * np.asarray(self.flex_sigma, dtype=float) ** 2)
+        return F, G, Qc
+
+    def flexure_p0(self) -> FloatArray:
+        """Stationary covariance of ``xi``: ``diag(sigma^2, (beta sigma)^2)``, shape (6, 6)."""
+        sig = np.asarray(self.flex_sigma, dtype=float)
+        return np.diag(np.concatenate([sig**2, (self.beta * sig) ** 2]))
+
+    def P0(self, layout: StateLayout, lat: float, m0: FloatArray | None = None) -> FloatArray:
+        """Initial covariance.
+
+        Parameters
+        ----------
+        layout : StateLayout
+            19- or 13-state layout.
+        lat : float
+            Latitude [rad] (for ``dL`` in radians).
+        m0 : ndarray, shape (3, 6), optional
+            Flexure lever-arm matrix at the start: ``dV_0 = dv_0 + M xi_0`` is then
+            correlated with ``xi_0``.
+
+        Returns
+        -------
+        ndarray, shape (n, n)
+        """
+        n = layout.n
+        P = np.zeros((n, n))
+        P[layout.dl, layout.dl] = (self.p0_pos / float(R_M(lat))) ** 2
+        P[layout.dv, layout.dv] = self.p0_vel**2 * _I3
+        P[layout.att, layout.att] = np.diag([self.p0_level**2] * 2 + [self.p0_heading**2])
+        P[layout.nabla, layout.nabla] = self.p0_accel_bias**2 * _I3
+        P[layout.eps, layout.eps] = self.p0_gyro_drift**2 * _I3
+        if layout.flexure:
+            Px = self.flexure_p0()
+            P[layout.xi, layout.xi] = Px
+            if m0 is not None:
+                P[layout.dv, layout.dv] += m0 @ Px @ m0.T
+                P[layout.dv, layout.xi] = m0 @ Px
+                P[layout.xi, layout.dv] = (m0 @ Px).T
+        return P
+
+
+# ----------------------------------------------------------------------------- helpers
+def flexure_matrix(c_b_n: FloatArray, omega_eb_b: FloatArray, R0: FloatArray) -> FloatArray:
+    """``M = C_b_n [[omega_eb_b x] R_0, R_0]``: flexure part of the slave velocity, shape (3, 6).
+
+    ``v_s - v_m - C_b_n (omega_eb_b x r_0) = M [theta; theta']`` (seed 001 eq. 10).
+
+    Parameters
+    ----------
+    c_b_n : ndarray, shape (3, 3)
+        Master attitude.
+    omega_eb_b : ndarray, shape (3,)
+        Master rate w.r.t. the earth, master axes [rad/s].
+    R0 : ndarray, shape (3, 3)
+        Seed 001's ``R_0``.
+
+    Returns
+    -------
+    ndarray, shape (3, 6)
+    """
+    return np.hstack([c_b_n @ skew(omega_eb_b) @ R0, c_b_n @ R0])
+
+
+# ----------------------------------------------------------------------------- period sums
+@dataclass
+class PeriodSums:
+    """What the mechanisation accumulates over one filter period (inputs of ``fx``).
+
+    Attributes
+    ----------
+    T : float
+        Period length [s].
+    dv_f : ndarray, shape (3,)
+        ``int C^ f~ dt`` [m/s] (computed navigation frame).
+    c_int : ndarray, shape (3, 3)
+        ``int C^_s_n dt`` [s].
+    v_int : ndarray, shape (3,)
+        ``int v^ dt`` [m].
+    w_in : ndarray, shape (3,)
+        ``int w^_in dt`` [rad].
+    cor : ndarray, shape (3,)
+        ``int (2 w^_ie + w^_en) dt`` [rad].
+    lat : float
+        Mechanisation latitude ``L^`` at the start [rad].
+    height : float
+        Height [m].
+    m0, m1 : ndarray, shape (3, 6), or None
+        Flexure matrices at the start and the end of the period.
+    phi_flex : ndarray, shape (6, 6), or None
+        Flexure transition over ``T``.
+    """
+
+    T: float = 0.0
+    dv_f: FloatArray = field(default_factory=lambda: np.zeros(3))
+    c_int: FloatArray = field(default_factory=lambda: np.zeros((3, 3)))
+    v_int: FloatArray = field(default_factory=lambda: np.zeros(3))
+    w_in: FloatArray = field(default_factory=lambda: np.zeros(3))
+    cor: FloatArray = field(default_factory=lambda: np.zeros(3))
+    lat: float = 0.0
+    height: float = 0.0
+    m0: FloatArray | None = None
+    m1: FloatArray | None = None
+    phi_flex: FloatArray | None = None
+
+    @classmethod
+    def constant(
+        cls,
+        T: float,
+        f_n: ArrayLike,
+        c_s_n: ArrayLike,
+        v_n: ArrayLike,
+        lat: float,
+        height: float = 0.0,
+        m: ArrayLike | None = None,
+        phi_flex: ArrayLike | None = None,
+    ) -> PeriodSums:
+        """Sums for inputs held constant over ``T`` (tests and linearisation checks).
+
+        Parameters
+        ----------
+        T : float
+            Period [s].
+        f_n : array_like, shape (3,)
+            Specific force in the computed frame [m/s2].
+        c_s_n : array_like, shape (3, 3)
+            Attitude.
+        v_n : array_like, shape (3,)
+            Velocity [m/s].
+        lat, height : float
+            Position [rad, m].
+        m : array_like, shape (3, 6), optional
+            Flexure matrix (used at both ends).
+        phi_flex : array_like, shape (6, 6), optional
+            Flexure transition over ``T``.
+
+        Returns
+        -------
+        PeriodSums
+        """
+        v = np.asarray(v_n, dtype=float)
+        w_ie, w_en = nav_rates(v, lat, height)
+        mm = None if m is None else np.asarray(m, dtype=float)
+        return cls(
+            T=float(T),
+            dv_f=np.asarray(f_n, dtype=float) * T,
+            c_int=np.asarray(c_s_n, dtype=float) * T,
+            v_int=v * T,
+            w_in=(w_ie + w_en) * T,
+            cor=(2.0 * w_ie + w_en) * T,
+            lat=float(lat),
+            height=float(height),
+            m0=mm,
+            m1=mm,
+            phi_flex=None if phi_flex is None else np.asarray(phi_flex, dtype=float),
+        )
+
+    def add(self, nav: Strapdown, h: float) -> None:
+        """Add the integrator's last step (trapezoidal in attitude and velocity).
+
+        Parameters
+        ----------
+        nav : Strapdown
+            The mechanisation, just after :meth:`Strapdown.step`.
+        h : float
+            That step [s].
+        """
+        self.T += h
+        self.dv_f += nav.dv_n
+        self.c_int += 0.5 * h * (nav.C_prev + nav.C_s_n)
+        self.v_int += 0.5 * h * (nav.v_prev + nav.v_n)
+        self.w_in += nav.w_in * h
+        self.cor += nav.cor * h
+
+
+# ----------------------------------------------------------------------------- nonlinear model
+def propagate(x: ArrayLike, sums: PeriodSums, layout: StateLayout) -> FloatArray:
+    """Nonlinear error model over one filter period (the UKF's ``fx``), batched.
+
+    Parameters
+    ----------
+    x : array_like, shape (..., n)
+        Error state(s) at the start of the period (see the module docstring).
+    sums : PeriodSums
+        The mechanisation's integrals over the period.
+    layout : StateLayout
+        19- or 13-state layout.
+
+    Returns
+    -------
+    ndarray, shape (..., n)
+        Error state(s) at the end of the period.
+    """
+    x = np.asarray(x, dtype=float)
+    T = sums.T
+    out = np.empty_like(x)
+    dl = x[..., layout.dl]
+    dV = x[..., layout.dv]
+    att = x[..., layout.att]
+    nab = x[..., layout.nabla]
+    eps = x[..., layout.eps]
+    if layout.flexure:
+        xi = x[..., layout.xi]
+        dv0 = dV - xi @ sums.m0.T
+    else:
+        dv0 = dV
+    lat_h = sums.lat
+    rm = float(R_M(lat_h)) + sums.height
+    rn = float(R_N(lat_h)) + sums.height
+    cl, sl, tl = math.cos(lat_h), math.sin(lat_h), math.tan(lat_h)
+    lat_t = lat_h - dl
+    zero = np.zeros_like(dl)
+    d_wie = OMEGA_IE * np.stack([cl - np.cos(lat_t), zero, -(sl - np.sin(lat_t))], axis=-1)
+    v_mean_e = sums.v_int[1] / T if T > 0 else 0.0
+    d_wen = np.stack(
+        [
+            dv0[..., 1] / rn,
+            -dv0[..., 0] / rm,
+            -dv0[..., 1] * tl / rn - v_mean_e * dl / (rn * cl * cl),
+        ],
+        axis=-1,
+    )
+    d_win = d_wie + d_wen
+    E0 = euler_to_dcm(att)
+    rot = (
+        eps @ sums.c_int.T + (E0 @ sums.w_in) - sums.w_in - (E0 @ (d_win[..., :, None] * T))[..., 0]
+    )
+    E1 = rotvec_to_dcm(rot) @ E0
+    EbT = 0.5 * np.swapaxes(E0 + E1, -1, -2)
+    dv1 = (
+        dv0
+        + sums.dv_f
+        - EbT @ sums.dv_f
+        + (EbT @ (nab @ sums.c_int.T)[..., :, None])[..., 0]
+        - cross(np.broadcast_to(sums.cor, dv0.shape), dv0)
+        - cross(2.0 * d_wie + d_wen, np.broadcast_to(sums.v_int, dv0.shape))
+    )
+    out[..., layout.dl] = dl + 0.5 * (dv0[..., 0] + dv1[..., 0]) * T / rm
+    out[..., layout.att] = dcm_to_euler(E1)
+    out[..., layout.nabla] = nab
+    out[..., layout.eps] = eps
+    if layout.flexure:
+        xi1 = xi @ sums.phi_flex.T
+        out[..., layout.xi] = xi1
+        out[..., layout.dv] = dv1 + xi1 @ sums.m1.T
+    else:
+        out[..., layout.dv] = dv1
+    return out
+
+
+def measurement(x: ArrayLike, layout: StateLayout) -> FloatArray:
+    """Velocity-matching measurement ``h(x) = dV``.
+
+    Parameters
+    ----------
+    x : array_like, shape (..., n)
+        Error states (one or many: sigma points along the first axes).
+    layout : StateLayout
+        19- or 13-state layout (where ``dV`` sits in ``x``).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        Slave-minus-master velocity error, NED [m/s].
+    """
+    return np.asarray(x, dtype=float)[..., layout.dv]
+
+
+def reset_jacobian(x_hat: ArrayLike, layout: StateLayout) -> FloatArray:
+    """Jacobian of the closed-loop reset at the estimate ``x_hat``, shape (n, n).
+
+    After the feedback ``C^ <- E(phi^)^T C^`` the new error rotation is
+    ``E(phi) E(phi^)^T``; to first order its Euler angles are ``A(phi^) (phi - phi^)``
+    with ``A`` the Euler-rate matrix (:func:`euler_rate_matrix`). Every other state is
+    shifted, so its block is the identity.
+
+    Parameters
+    ----------
+    x_hat : array_like, shape (n,)
+        The estimate fed back.
+    layout : StateLayout
+        19- or 13-state layout.
+
+    Returns
+    -------
+    ndarray, shape (n, n)
+    """
+    J = np.eye(layout.n)
+    J[layout.att, layout.att] = euler_rate_matrix(np.asarray(x_hat)[layout.att])
+    return J
+
+
+# ----------------------------------------------------------------------------- linear model
+def linear_error_model(
+    f_n: ArrayLike,
+    c_s_n: ArrayLike,
+    v_n: ArrayLike,
+    lat: float,
+    height: float = 0.0,
+    layout: StateLayout | None = None,
+    m: ArrayLike | None = None,
+    m_dot: ArrayLike | None = None,
+    tuning: TransferTuning | None = None,
+) -> FloatArray:
+    """Continuous-time small-error model ``x' = A x`` of the filter's state.
+
+    Derived from the equations of the module docstring with ``E = I + [phi x]``, first
+    in the slave-velocity form ``y = [dL, dv, phi, xi, nabla, eps]``::
+
+        dL'  = dv_N / R_M
+        dv'  = -[f x] phi + C_s_n nabla - [(2 w_ie + w_en) x] dv + [v x](2 dw_ie + dw_en)
+        phi' = -[w_in x] phi + C_s_n eps - dw_ie - dw_en
+        xi'  = F_flex xi
+        dw_ie = Omega [-sin L, 0, -cos L] dL,
+        dw_en = [dv_E / R_N, -dv_N / R_M, -dv_E tan L / R_N - v_E dL / (R_N cos^2 L)]
+
+    then transformed to the filter's ``dV = dv + M xi``: ``A = S A_y S^-1 + S' S^-1`` with
+    ``S = I + (M in the (dV, xi) block)``.
+
+    Parameters
+    ----------
+    f_n : array_like, shape (3,)
+        Slave specific force in NED [m/s2].
+    c_s_n : array_like, shape (3, 3)
+        Slave attitude.
+    v_n : array_like, shape (3,)
+        Slave velocity [m/s].
+    lat, height : float
+        Position [rad, m].
+    layout : StateLayout, optional
+        Default: 19 states.
+    m, m_dot : array_like, shape (3, 6), optional
+        Flexure matrix ``M`` and its time derivative (default zero).
+    tuning : TransferTuning, optional
+        For the flexure model (default :class:`TransferTuning`).
+
+    Returns
+    -------
+    ndarray, shape (n, n) [1/s]
+    """
+    layout = layout or StateLayout()
+    tuning = tuning or TransferTuning()
+    f = np.asarray(f_n, dtype=float)
+    C = np.asarray(c_s_n, dtype=float)
+    v = np.asarray(v_n, dtype=float)
+    n = layout.n
+    rm = float(R_M(lat)) + height
+    rn = float(R_N(lat)) + height
+    w_ie, w_en = nav_rates(v, lat, height)
+    sl, cl, tl = math.sin(lat), math.cos(lat), math.tan(lat)
+    N = np.array([[0.0, 1.0 / rn, 0.0], [-1.0 / rm, 0.0, 0.0], [0.0, -tl / rn, 0.0]])
+    l_ie = OMEGA_IE * np.array([-sl, 0.0, -cl])
+    l_en = np.array([0.0, 0.0, -v[1] / (rn * cl * cl)])
+    dl, dv, att = layout.dl, layout.dv, layout.att
+    A = np.zeros((n, n))
+    A[dl, dv.start] = 1.0 / rm
+    A[dv, dv] = -skew(2.0 * w_ie + w_en) + skew(v) @ N
+    A[dv, dl] = skew(v) @ (2.0 * l_ie + l_en)
+    A[dv, att] = -skew(f)
+    A[dv, layout.nabla] = C
+    A[att, att] = -skew(w_ie + w_en)
+    A[att, dv] = -N
+    A[att, dl] = -(l_ie + l_en)
+    A[att, layout.eps] = C
+    if not layout.flexure:
+        return A
+    F, _, _ = tuning.flexure_model()
+    A[layout.xi, layout.xi] = F
+    M = np.zeros((3, 6)) if m is None else np.asarray(m, dtype=float)
+    Md = np.zeros((3, 6)) if m_dot is None else np.asarray(m_dot, dtype=float)
+    S = np.eye(n)
+    S[dv, layout.xi] = M
+    S_inv = np.eye(n)
+    S_inv[dv, layout.xi] = -M
+    S_dot = np.zeros((n, n))
+    S_dot[dv, layout.xi] = Md
+    return S @ A @ S_inv + S_dot @ S_inv
+
+
+def master_rate(c_hist: list[FloatArray], h: float) -> FloatArray:
+    """Master body rate w.r.t. the navigation frame at the newest sample, master axes.
+
+    Five-point backward difference of ``rho_j = rotvec(C_0^T C_j)`` (``C_0`` the newest
+    attitude, ``C_j`` the one ``j`` steps before)::
+
+        omega_nb_b = (-48 rho_1 + 36 rho_2 - 16 rho_3 + 3 rho_4) / (12 h)
+
+    exact for ``rho`` quartic in time; with fewer samples the 3- or 2-point formula.
+
+    Parameters
+    ----------
+    c_hist : list of ndarray, shape (3, 3)
+        Attitudes ``C_b_n``, newest first, equally spaced by ``h``.
+    h : float
+        Spacing [s].
+
+    Returns
+    -------
+    ndarray, shape (3,) [rad/s]
+    """
+    c0 = c_hist[0]
+    k = len(c_hist)
+    if k < 2:
+        return np.zeros(3)
+    rho = dcm_to_rotvec(np.array([c0.T @ c for c in c_hist[1:5]]))
+    if k >= 5:
+        return (-48.0 * rho[0] + 36.0 * rho[1] - 16.0 * rho[2] + 3.0 * rho[3]) / (12.0 * h)
+    if k >= 3:
+        return (-4.0 * rho[0] + rho[1]) / (2.0 * h)
+    return -rho[0] / h
