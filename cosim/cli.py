@@ -203,6 +203,13 @@ def fmus(fmu_dir: Path, build: bool) -> None:
 )
 @click.option("--resume", is_flag=True, help="Keep the finished runs in --report, run the rest.")
 @click.option("--progress/--no-progress", default=True, help="Progress bar on stderr.")
+@click.option(
+    "--only-run",
+    "only_runs",
+    type=int,
+    multiple=True,
+    help="Run only run I of the campaign of --runs runs (repeatable), with its seeds and draws.",
+)
 def verify(
     scenario: Path,
     report_dir: Path,
@@ -213,8 +220,12 @@ def verify(
     fmu_dir: Path | None,
     resume: bool,
     progress: bool,
+    only_runs: tuple[int, ...],
 ) -> None:
     """Verify the requirements of SCENARIO over a Monte Carlo campaign.
+
+    --only-run I reruns run I alone with the numbers it has in the whole campaign (the
+    same --seed and --runs: stratified draws depend on the run count).
 
     Exit code: 0 all satisfied, 1 any violated, 2 any undecided (none violated),
     3 bad input, 130 interrupted (finished runs are kept: rerun with --resume).
@@ -239,6 +250,7 @@ def verify(
             fmu_dir=fmu_dir,
             resume=resume,
             progress=progress,
+            only_runs=list(only_runs) or None,
         )
         paths = write_reports(campaign)
     except UserError as exc:
@@ -247,8 +259,10 @@ def verify(
         click.echo(f"{exc or 'interrupted'}", err=True)
         sys.exit(130)
     failed = len(campaign.failed_runs)
+    ran = len(campaign.records)
+    of = "" if ran == campaign.settings.runs else f" of {campaign.settings.runs}"
     click.echo(
-        f"{campaign.scenario['name']}: {campaign.settings.runs} run(s), {failed} failed, "
+        f"{campaign.scenario['name']}: {ran} run(s){of}, {failed} failed, "
         f"campaign seed {campaign.settings.seed}"
     )
     for req, v in zip(campaign.requirements, campaign.verdicts, strict=True):
@@ -328,7 +342,12 @@ def export_ssp(scenario: Path, out: Path, fmu_dir: Path) -> None:
 def reproduce(
     paper: str, out: Path | None, runs: int | None, seed: int | None, update_readme: bool
 ) -> None:
-    """Reproduce a source paper (shared/SEEDS.md): its tables next to ours, and plots."""
+    """Reproduce a source paper (README, "References": seed 000, 001, 003): tables and plots.
+
+    Every run goes through the campaign engine of `verify`: run I of a campaign of PAPER
+    can be rerun alone with `ins-cosim verify SCENARIO --seed S --runs N --only-run I`
+    (README, "Verification and campaigns").
+    """
     from cosim import reproduce as rep
 
     runs = rep.DEFAULTS[paper][0] if runs is None else runs

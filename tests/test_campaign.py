@@ -9,18 +9,11 @@ import numpy as np
 import pytest
 
 from cosim.errors import ScenarioError
-from cosim.verify.campaign import (
-    CampaignError,
-    WorkerSpec,
-    latin_hypercube_normal,
-    prepare,
-    read_records,
-    release_worker_state,
-    run_campaign,
-    run_one,
-    run_seeds,
-)
+from cosim.verify.campaign import CampaignError, campaign_jobs, prepare, run_campaign
+from cosim.verify.records import read_records
 from cosim.verify.requirements import SATISFIED, UNDECIDED, VIOLATED
+from cosim.verify.seeds import latin_hypercube_normal, run_seeds
+from cosim.verify.workers import Job, WorkerSpec, release_worker_state, run_one
 
 TESTS = Path(__file__).resolve().parent
 ROOT = TESTS.parent
@@ -125,7 +118,7 @@ def test_process_pool_equals_one_process_and_each_run_alone(pool_campaign, tmp_p
     spec = WorkerSpec(str(DEMO), prep.scenario.sha256, None, tuple(prep.requirements), 400)
     release_worker_state()
     try:
-        alone = run_one(spec, 13, pool_campaign.records[13].seeds)
+        alone = run_one(spec, Job(13, pool_campaign.records[13].seeds))
     finally:
         release_worker_state()
     assert alone.metrics == pool_campaign.records[13].metrics
@@ -320,3 +313,112 @@ def test_bad_campaign_table(tmp_path: Path, campaign_table: str, key: str, fragm
 def test_a_scenario_without_requirements_is_refused(tmp_path: Path) -> None:
     with pytest.raises(ScenarioError, match=r"key 'requirements'.*no requirements"):
         run_campaign(ROOT / "scenarios" / "demo.toml", tmp_path, workers=1, progress=False)
+
+
+# ----------------------------------------------------------------------- the one seed rule
+#: Seeds the runners before the one engine gave, as literal numbers (seed 000's
+#: ``run_seeds(2024, i)``, seed 001's ``run_seeds(2011, i)``, seed 003's ``_seeds`` of
+#: base, imu, align at 2024 and the verify campaign's of flexure, sensor at 2024).
+HRG = ("gyro", "accel", "filter", "truth")
+OLD_SEEDS = [
+    (2024, 0, HRG, (1427649267, 462515364, 1033992852, 1785329617)),
+    (2024, 7, HRG, (184274787, 1115197804, 827982798, 716376889)),
+    (2024, 29, HRG, (1644296582, 236043143, 1040755436, 1027887620)),
+    (2011, 0, ("flex", "imu", "master"), (779035943, 857496566, 749523806)),
+    (2011, 7, ("flex", "imu", "master"), (735736606, 1729268132, 751260297)),
+    (2011, 29, ("flex", "imu", "master"), (858347003, 848765987, 1278633035)),
+    (2024, 49, ("base", "imu", "align"), (924981200, 1107026240, 1843027452)),
+    (2024, 7, ("flexure", "sensor"), (184274787, 1115197804)),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("seed, index, names, expected", OLD_SEEDS)
+def test_the_one_seed_rule_keeps_every_old_runner_seed(seed, index, names, expected) -> None:
+    assert run_seeds(seed, index, names) == dict(zip(names, expected, strict=True))
+    # a stream appended after the blocks leaves their seeds alone (seed 000's truth)
+    assert run_seeds(seed, index, names[:2]) == dict(zip(names[:2], expected[:2], strict=True))
+
+
+def test_the_stratified_design_keeps_the_old_seed001_draws() -> None:
+    """Rows 0, 7, 29 of seed 001's ``sensor_draws(2011, 30)`` (accel x, y, z, gyro x, y, z)."""
+    z = latin_hypercube_normal(30, 6, 2011)
+    assert z[0].tolist() == [
+        0.056708497084157455, -0.23986205378877606, -0.6295455033186849,
+        1.6166255989358058, 0.8104671218017474, 0.31280263747332265,
+    ]  # fmt: skip
+    assert z[7].tolist() == [
+        0.6044910635079676, 0.6575722557966909, 2.555745794888638,
+        0.762848453250819, -0.1261011163380491, 0.5021920958661085,
+    ]  # fmt: skip
+    assert z[29].tolist() == [
+        -0.2902891882598529, -0.298701748414455, 0.6735190943150219,
+        -0.048349348576533877, -2.0324889867874285, -0.4255833053843837,
+    ]  # fmt: skip
+
+
+def test_only_run_reruns_a_run_alone_with_its_numbers(pool_campaign, tmp_path) -> None:
+    alone = run_campaign(DEMO, tmp_path, workers=1, progress=False, only_runs=[13, 4])
+    assert [r.index for r in alone.records] == [4, 13]
+    for rec in alone.records:
+        whole = pool_campaign.records[rec.index]
+        assert (rec.seeds, rec.metrics) == (whole.seeds, whole.metrics)
+        for key in whole.history:
+            np.testing.assert_array_equal(rec.history[key], whole.history[key])
+    assert alone.execution["only_runs"] == [4, 13]
+    with pytest.raises(CampaignError, match="runs 0 to 19"):
+        run_campaign(DEMO, tmp_path, workers=1, progress=False, only_runs=[20])
+    with pytest.raises(CampaignError, match="cannot be resumed"):
+        run_campaign(DEMO, tmp_path, workers=1, progress=False, resume=True)
+
+
+def stratified_scenario(tmp_path: Path, stratify: str) -> Path:
+    """The seed 003 static scenario, 1 s long, with a ``[campaign] stratify`` line."""
+    text = (ROOT / "scenarios" / "sins_north_finding.toml").read_text()
+    text = text.replace("[campaign]\n", f"[campaign]\n{stratify}\n", 1)
+    path = tmp_path / "stratified.toml"
+    path.write_text(text)
+    return path
+
+
+def test_stratify_draws_the_parameters_from_one_design(tmp_path: Path) -> None:
+    from cosim.verify.campaign import simulate
+
+    path = stratified_scenario(tmp_path, 'stratify = ["imu.accel_bias", "imu.gyro_bias"]')
+    prep = prepare(path)
+    assert [(s.block, s.name, s.size) for s in prep.stratified] == [
+        ("imu", "accel_bias", 3),
+        ("imu", "gyro_bias", 3),
+    ]
+    imu = prep.parameters["imu"]
+    z = latin_hypercube_normal(5, 6, 3)
+    records = simulate(prep, campaign_jobs(prep, 3, 5, indices=[0, 4]), stop=0.1)
+    for rec in records:
+        p = rec.parameters["imu"]
+        assert p["accel_bias_sigma"] == p["gyro_bias_sigma"] == 0.0
+        for k in range(3):
+            fixed = imu.get(f"accel_bias[{k + 1}]", 0.0)
+            assert p[f"accel_bias[{k + 1}]"] == fixed + imu["accel_bias_sigma"] * z[rec.index, k]
+            fixed = imu.get(f"gyro_bias[{k + 1}]", 0.0)
+            assert p[f"gyro_bias[{k + 1}]"] == fixed + imu["gyro_bias_sigma"] * z[rec.index, 3 + k]
+    # without stratify the IMU draws from its seed, and the campaign sets no bias
+    plain = simulate(prep, campaign_jobs(prep, 3, 5, indices=[0], stratify=False), stop=0.1)
+    assert plain[0].parameters["imu"]["accel_bias_sigma"] == imu["accel_bias_sigma"] > 0.0
+    # a stratified campaign cannot change its run count on --resume
+    run_campaign(path, tmp_path / "r", runs=2, workers=1, progress=False)
+    with pytest.raises(CampaignError, match="cannot change the design"):
+        run_campaign(path, tmp_path / "r", runs=3, resume=True, workers=1, progress=False)
+
+
+@pytest.mark.parametrize(
+    "line, key, fragment",
+    [
+        ("stratify = 'imu.accel_bias'", "campaign.stratify", "list of 'block.parameter'"),
+        ("stratify = ['accel_bias']", "campaign.stratify", "list of 'block.parameter'"),
+        ("stratify = ['imu.seed']", "campaign.stratify[0]", "sibling 'seed_sigma'"),
+        ("stratify = ['nope.accel_bias']", "campaign.stratify[0]", "sibling"),
+    ],
+)
+def test_bad_stratify(tmp_path: Path, line: str, key: str, fragment: str) -> None:
+    with pytest.raises(ScenarioError) as info:
+        prepare(stratified_scenario(tmp_path, line))
+    assert key in str(info.value) and fragment in str(info.value)

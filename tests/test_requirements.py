@@ -17,11 +17,13 @@ from cosim.verify.requirements import (
     Requirement,
     RunMetric,
     Verdict,
-    clopper_pearson,
     error_signal,
     evaluate,
-    judge,
     load_requirements,
+)
+from cosim.verify.statistics import (
+    clopper_pearson,
+    judge,
     overall_exit_code,
     wilks_lower_rank,
     wilks_min_runs,

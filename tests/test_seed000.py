@@ -19,19 +19,19 @@ from cosim.reproduce.seed000 import (
     ARCMIN,
     CONV_LIMIT,
     LARGE_AZIMUTHS,
+    STREAMS,
     TABLE1,
     UG_SQRT_HZ,
     NoiseSensitivity,
-    Seed000Runner,
-    _sensitivity_markdown,
-    _sensitivity_plot,
     campaign,
     convergence_bound,
     largest_density_within,
     noise_sensitivity,
     reproduce,
-    run_seeds,
 )
+from cosim.reproduce.seed000_report import sensitivity_markdown, sensitivity_plot
+from cosim.verify.campaign import CampaignError
+from cosim.verify.seeds import run_seeds
 from models.constants import OMEGA_IE
 
 FIXED_SEED = 2024  # the campaign seed of the README's reproduction; run 0 is "the fixed seed"
@@ -44,9 +44,22 @@ def test_run_seeds_are_the_spawned_children_of_the_campaign_seed() -> None:
         expected = dict(
             zip(("gyro", "accel", "filter", "truth"), (int(s) >> 1 for s in state), strict=True)
         )
-        assert run_seeds(77, i) == expected
-    assert run_seeds(77, 0) != run_seeds(77, 1) != run_seeds(78, 1)
-    assert all(0 <= s < 2**31 for s in run_seeds(77, 3).values())
+        assert run_seeds(77, i, STREAMS) == expected
+    assert run_seeds(77, 0, STREAMS) != run_seeds(77, 1, STREAMS) != run_seeds(78, 1, STREAMS)
+    assert all(0 <= s < 2**31 for s in run_seeds(77, 3, STREAMS).values())
+    # the three seeded blocks come first: their seeds are those of `ins-cosim verify`
+    assert seed000.prepared().seeded == list(STREAMS[:3])
+
+
+def test_a_run_alone_equals_that_run_of_the_campaign() -> None:
+    kw = {"stop": 20.0, "history_runs": 5, "truth": "prior"}
+    whole = campaign(3, FIXED_SEED, (1, 2), workers=2, **kw)
+    alone = campaign(3, FIXED_SEED, (1, 2), indices=[2], **kw)
+    for m in (1, 2):
+        a, b = alone[m][0], whole[m][2]
+        assert a.index == b.index == 2 and a.azimuth0 == b.azimuth0
+        for name, column in b.history.items():
+            np.testing.assert_array_equal(a.history[name], column)
 
 
 @pytest.fixture(scope="module")
@@ -89,21 +102,18 @@ def test_large_initial_azimuths_converge_in_position_1_with_the_upf() -> None:
     # Position 1 only (no indexing), 100 s: what one position can observe, the apparent
     # azimuth, must be found from any initial azimuth. The theory (linear model's
     # posterior) gives sigma(100 s) = 0.53' (200/100)^1.5 = 1.5'.
-    runner = Seed000Runner(stop=100.0, platform={"index_time": -1.0})
-    try:
-        for i, az in enumerate(LARGE_AZIMUTHS):
-            seeds = run_seeds(FIXED_SEED + 1, i)
-            truth = {"azimuth0": math.radians(az)}
-            upf = runner.run(1, seeds, truth, history=True)
-            sig = float(upf.history["psi_sigma"][-1])
-            assert 1.0 < sig < 2.0, (az, sig)
-            # 4 sigma (P = 6e-5 per case) plus the 0.33' the azimuth drift moves in 100 s
-            assert abs(upf.psi_err_end[0]) <= 4.0 * sig + 0.35, (az, upf.psi_err_end[0])
-            if az in (170.0, -120.0):
-                ekf = runner.run(0, seeds, truth)
-                assert abs(ekf.psi_err_end[0]) > 90 * 60, (az, ekf.psi_err_end[0])
-    finally:
-        runner.close()
+    kw = {"stop": 100.0, "platform": {"index_time": -1.0}, "history_runs": len(LARGE_AZIMUTHS)}
+    for i, az in enumerate(LARGE_AZIMUTHS):
+        methods = (1, 0) if az in (170.0, -120.0) else (1,)
+        res = campaign(len(LARGE_AZIMUTHS), FIXED_SEED + 1, methods, az, indices=[i], **kw)
+        upf = res[1][0]
+        sig = float(upf.history["psi_sigma"][-1])
+        assert 1.0 < sig < 2.0, (az, sig)
+        # 4 sigma (P = 6e-5 per case) plus the 0.33' the azimuth drift moves in 100 s
+        assert abs(upf.psi_err_end[0]) <= 4.0 * sig + 0.35, (az, upf.psi_err_end[0])
+        if 0 in res:
+            ekf = res[0][0]
+            assert abs(ekf.psi_err_end[0]) > 90 * 60, (az, ekf.psi_err_end[0])
 
 
 # ------------------------------------------------------------------ noise sensitivity
@@ -131,10 +141,9 @@ def test_largest_density_within_interpolates_in_log_log() -> None:
         largest_density_within((1.0, 2.0), (-1.0, 2.0), 70.0)
 
 
-def runner_noise(runner: Seed000Runner) -> tuple[float, float]:
-    """The truth's and the filter's white-noise density of the last run [m/s/sqrt(s)]."""
-    blocks = runner.system.blocks
-    return blocks["accel"].instance.noise_density, blocks["filter"].instance.accel_noise
+def run_noise(run) -> tuple[float, float]:
+    """The truth's and the filter's white-noise density of a run [m/s/sqrt(s)]."""
+    return run.parameters["accel"]["noise_density"], run.parameters["filter"]["accel_noise"]
 
 
 def test_convergence_bound_is_the_fisher_information_of_the_slope_fit() -> None:
@@ -178,56 +187,55 @@ def _sensitivity(times_upf: dict[float, float]) -> NoiseSensitivity:
 
 def test_sensitivity_report_gives_the_bound_next_to_the_campaign(tmp_path: Path) -> None:
     sens = _sensitivity({2.0: 40.0, 5.0: 88.0, 8.0: 120.0})
-    text = "\n".join(_sensitivity_markdown(sens))
+    text = "\n".join(sensitivity_markdown(sens))
     # the 5 ug/sqrt(Hz) row: UPF 95 % 88 / 87 s, bound 68 s, not within 70 s
     assert "| **5 (scenario)** | 44 / 44 | 88 / 87 | 88 / 87 | 0.80 | 0 / 0 | 68 | **no** |" in text
     # the bound reaches 70 s at 5 * (70 / 68.457)^1.5 = 5.17 ug/sqrt(Hz)
     expected = 5.0 * (CONV_LIMIT / convergence_bound(5.0, 9.7966, math.radians(45.0))) ** 1.5
     assert f"reaches {CONV_LIMIT:g} s at {expected:.1f} ug/sqrt(Hz)" in text
     assert expected == pytest.approx(5.17, abs=0.01)
-    name = _sensitivity_plot(tmp_path, sens)
+    name = sensitivity_plot(tmp_path, sens)
     assert name == "seed000_noise.png" and (tmp_path / name).stat().st_size > 10_000
 
 
+#: Position 1 only (no indexing), 200 s: what the convergence of position 1 needs.
+POSITION1 = {"stop": 200.0, "platform": {"index_time": -1.0}}
+
+
 @pytest.fixture(scope="module")
-def position1_runner():
-    """Position 1 only (no indexing), 200 s: what the convergence of position 1 needs."""
-    runner = Seed000Runner(stop=200.0, platform={"index_time": -1.0})
-    yield runner
-    runner.close()
+def prep():
+    """The scenario, checked once."""
+    return seed000.prepared()
 
 
-def test_noise_overrides_reach_truth_and_filter_and_its_sigma_follows_theory(
-    position1_runner: Seed000Runner,
-) -> None:
+def test_noise_overrides_reach_truth_and_filter_and_its_sigma_follows_theory(prep) -> None:
     # The KF (method 2) is linear: its covariance does not depend on the noise draw. The
     # azimuth is the slope of the measured tilt rate Oc psi fitted over t s of white noise:
     # sigma = sqrt(12) N_eff / (g Oc t^1.5), with N_eff^2 = N^2 + dv_quantum^2 / (6 period)
     # the filter's model (white noise plus pulse quantisation, 4.2 ug/sqrt(Hz)). The
     # priors (tilts 3', drift 0.2 deg/h) add the rest: the KF sits 0.5-1.2 % below it for
     # t >= 20 s at 2 and 8 ug/sqrt(Hz), hence 2 %.
-    runner = position1_runner
-    base = runner.base["filter"]
+    base = prep.parameters["filter"]
     g, lat = float(base["g"]), float(base["lat"])
     quantum2 = float(base["dv_quantum"]) ** 2 / (6.0 * float(base["period"]))
     for density in (2.0, 8.0):
         n = density * UG_SQRT_HZ
         over = {"accel": {"noise_density": n}, "filter": {"accel_noise": n}}
-        kf = runner.run(2, run_seeds(FIXED_SEED, 0), history=True, overrides=over)
-        assert runner_noise(runner) == (n, n)  # what the truth's and filter's blocks ran with
+        kf = campaign(1, FIXED_SEED, (2,), history_runs=1, overrides=over, prep=prep, **POSITION1)
+        kf = kf[2][0]
+        assert run_noise(kf) == (n, n)  # what the truth's and filter's blocks ran with
         h = kf.history
         for t in (50.0, 100.0, 200.0):
             i = int(np.argmin(np.abs(h["time"] - t)))
             assert h["time"][i] == pytest.approx(t)
             theory = math.sqrt(12.0 * (n**2 + quantum2)) / (g * OMEGA_IE * math.cos(lat) * t**1.5)
             assert h["psi_sigma"][i] * ARCMIN == pytest.approx(theory, rel=0.02), (density, t)
-    # the next run without overrides is back on the scenario's 5 ug/sqrt(Hz)
-    runner.run(2, run_seeds(FIXED_SEED, 0))
-    assert runner_noise(runner) == pytest.approx((5.0 * UG_SQRT_HZ, 5.0 * UG_SQRT_HZ))
+    # a run without overrides is on the scenario's 5 ug/sqrt(Hz)
+    kf = campaign(1, FIXED_SEED, (2,), history_runs=1, prep=prep, stop=1.0)[2][0]
+    assert run_noise(kf) == pytest.approx((5.0 * UG_SQRT_HZ, 5.0 * UG_SQRT_HZ))
 
 
-def test_overrides_are_checked(position1_runner: Seed000Runner) -> None:
-    seeds = run_seeds(FIXED_SEED, 0)
+def test_overrides_are_checked(prep) -> None:
     for over, match in (
         ({"acel": {"noise_density": 1e-5}}, "unknown block 'acel'"),
         ({"accel": {"noise": 1e-5}}, "no parameter 'noise'"),
@@ -235,15 +243,13 @@ def test_overrides_are_checked(position1_runner: Seed000Runner) -> None:
         ({"accel": {"seed": 4}}, "set by each run"),
         ({"filter": {"method": 0}}, "set by each run"),
     ):
-        with pytest.raises(ValueError, match=match):
-            position1_runner.run(2, seeds, overrides=over)
-    with pytest.raises(ValueError, match="unknown block"):
-        Seed000Runner(stop=1.0, overrides={"nope": {"x": 1.0}})
+        with pytest.raises(CampaignError, match=match):
+            campaign(1, FIXED_SEED, (2,), overrides=over, prep=prep, stop=1.0)
+    with pytest.raises(CampaignError, match="unknown block"):
+        campaign(1, FIXED_SEED, (2,), platform=None, overrides={"nope": {"x": 1.0}}, stop=1.0)
 
 
-def test_convergence_time_grows_with_the_noise_as_theory_says(
-    position1_runner: Seed000Runner,
-) -> None:
+def test_convergence_time_grows_with_the_noise_as_theory_says(prep) -> None:
     # Truth and filter model at 2 and 8 ug/sqrt(Hz), the same 12 runs (same draws, scaled).
     # The error's sigma goes as N t^-1.5, so the time to enter the 4' band as N^(2/3):
     # 8 / 2 ug -> 4^(2/3) = 2.52; 1 if the truth's noise did not reach the sensors (or did
@@ -252,7 +258,9 @@ def test_convergence_time_grows_with_the_noise_as_theory_says(
     # little); the median ratio of 12 of those 40 runs drawn at random lies in
     # [1.59, 2.90] in 98 % and [1.47, 3.14] in 99.8 % of the draws (outside [1.5, 3.3] in
     # 0.3 %). A time linear in N with the same spread would be below 3.3 in 9 % of them.
-    sens = noise_sensitivity(12, FIXED_SEED, (2.0, 8.0), methods=(2,), runner=position1_runner)
+    sens = noise_sensitivity(
+        12, FIXED_SEED, (2.0, 8.0), methods=(2,), workers=2, prep=prep, **POSITION1
+    )
     low, high = sens.stats[2.0][2], sens.stats[8.0][2]
     assert low["n"] == high["n"] == 12  # ("failed" needs position 2: all of them here)
     ratio = high["t1"] / low["t1"]
@@ -261,12 +269,10 @@ def test_convergence_time_grows_with_the_noise_as_theory_says(
     # no run can beat physics: a median time to *stay* inside 4' is no earlier than the
     # Cramer-Rao time at which half of all runs can be inside (18 s at 2, 46 s at 8
     # ug/sqrt(Hz); these 12 runs' KF medians are 26 s and 69 s)
-    base = position1_runner.base["filter"]
+    base = prep.parameters["filter"]
     g, lat = float(base["g"]), float(base["lat"])
     for density, st in ((2.0, low), (8.0, high)):
         assert st["t1"] >= convergence_bound(density, g, lat, 0.5), (density, st["t1"])
-    # the swept density reached both blocks (the last one swept)
-    assert runner_noise(position1_runner) == (8.0 * UG_SQRT_HZ, 8.0 * UG_SQRT_HZ)
     assert sens.scenario_density == pytest.approx(5.0)
     assert sens.quantum_density == pytest.approx(1e-4 / math.sqrt(6.0) / UG_SQRT_HZ)
     # no position 2 in this runner: its convergence time is never within 70 s
@@ -279,12 +285,12 @@ def test_campaign_meets_table_1_at_the_95th_percentile() -> None:
     res = campaign(30, FIXED_SEED, (0, 1))
     upf = res[1]
     assert not any(s.failed for s in upf)
-    p95 = seed000._p95
+    p95 = seed000.p95
     # acceptance 1: azimuth <= 4' (p95; sigma 0.53' -> p95 ~ 1.1' plus the D_A bias)
     assert p95([s.azimuth_err for s in upf]) <= 4.0
     # convergence per position: the median run within 70 s (the paper's figure is one run)
-    assert seed000._median([s.t_conv[0] for s in upf]) <= 70.0
-    assert seed000._median([s.t_conv[1] for s in upf]) <= 70.0
+    assert seed000.median([s.t_conv[0] for s in upf]) <= 70.0
+    assert seed000.median([s.t_conv[1] for s in upf]) <= 70.0
     # acceptance 2: Table 1 at the 95th percentile
     assert p95([s.azimuth_err for s in upf]) <= TABLE1["azimuth"]
     assert p95([s.theta_E_err for s in upf]) <= TABLE1["theta_E"]

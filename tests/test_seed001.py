@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from cosim.alignment.transfer import covariance_analysis
+from cosim.alignment.transfer_analysis import transfer_covariance
+from cosim.alignment.transfer_model import StateLayout
 from cosim.reproduce import update_readme
 from cosim.reproduce.seed001 import (
     HEADING_LIMIT,
@@ -21,65 +22,91 @@ from cosim.reproduce.seed001 import (
     LEVEL_TOL,
     SCENARIO,
     SEEDED,
-    ReproductionError,
-    Runner,
     make_case,
     plan,
     reproduce,
     run_cases,
-    run_seeds,
-    sensor_draws,
     stats,
 )
-from cosim.verify.campaign import prepare
-from cosim.verify.campaign import run_seeds as campaign_run_seeds
+from cosim.verify.campaign import CampaignError, campaign_jobs, prepare, run_campaign
+from cosim.verify.records import decimation
+from cosim.verify.seeds import latin_hypercube_normal
+from models.constants import ARCMIN
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
 def test_run_seeds_follow_the_campaign_mapping() -> None:
-    """Our runs use ``ins-cosim verify``'s seeds: SeedSequence(seed).spawn(runs)[i] >> 1."""
+    """Our runs use ``ins-cosim verify``'s seeds and draws: the scenario's own campaign."""
     prep = prepare(SCENARIO)
     assert tuple(prep.seeded) == SEEDED
-    for i in (0, 7):
-        expected = np.random.SeedSequence(2011).spawn(10)[i].generate_state(3, np.uint32) >> 1
-        assert list(run_seeds(2011, i).values()) == [int(v) for v in expected]
-        assert run_seeds(2011, i) == campaign_run_seeds(2011, i, prep.seeded)
+    assert [(s.block, s.name, s.size) for s in prep.stratified] == [
+        ("imu", "accel_bias", 3),
+        ("imu", "gyro_bias", 3),
+    ]
+    jobs = campaign_jobs(prep, 2011, 30, indices=[0, 7])
+    for job in jobs:
+        i = job.index
+        expected = np.random.SeedSequence(2011).spawn(30)[i].generate_state(3, np.uint32) >> 1
+        assert list(job.seeds.values()) == [int(v) for v in expected]
+        z = latin_hypercube_normal(30, 6, 2011)[i]
+        assert job.stratified == (
+            ("imu", "accel_bias", tuple(z[:3])),
+            ("imu", "gyro_bias", tuple(z[3:])),
+        )
 
 
-def test_runner_reset_reproduces_a_run() -> None:
+def test_reset_between_runs_reproduces_a_run() -> None:
     """One built system, reset between runs: the same seeds give the same numbers, others not."""
-    runner = Runner(stop=30.0)
-    try:
-        case = make_case("campaign modelled")
-        a = runner.run(case, 0, 5)
-        b = runner.run(case, 1, 5)
-        c = runner.run(case, 0, 5)
-    finally:
-        runner.close()
-    np.testing.assert_array_equal(a.err, c.err)
-    np.testing.assert_array_equal(a.sigma, c.sigma)
-    assert not np.allclose(a.err[-1], b.err[-1])
+    a, b, c = make_case("a"), make_case("b"), make_case("c")
+    res = run_cases([(a, 0), (b, 1), (c, 0)], 5, stop=30.0)
+    np.testing.assert_array_equal(res["a"][0].err, res["c"][0].err)
+    np.testing.assert_array_equal(res["a"][0].sigma, res["c"][0].sigma)
+    assert not np.allclose(res["a"][0].err[-1], res["b"][0].err[-1])
 
 
 def test_stratified_case_gives_each_run_its_row_of_the_design() -> None:
     """Run i's true turn-on bias is sigma * row i of the design; nothing else changes."""
-    runner = Runner(stop=1.0)
-    try:
-        sigma = float(runner.base["imu"]["accel_bias_sigma"])
-        case = make_case("s", stratified=4)
-        z = sensor_draws(9, 4)
-        for i in (0, 3):
-            run = runner.run(case, i, 9)
-            # accel_bias_b = turn-on bias + in-run random walk (5e-5 g/sqrt(Hz) over 1 s):
-            # within 1e-3 sigma of the drawn value
-            np.testing.assert_allclose(run.accel_bias, sigma * z[i, :3], atol=1e-3 * sigma)
-        with pytest.raises(ReproductionError, match="outside its stratified design"):
-            runner.run(case, 4, 9)
-    finally:
-        runner.close()
+    sigma = float(prepare(SCENARIO).parameters["imu"]["accel_bias_sigma"])
+    case = make_case("s", stratified=4)
+    z = latin_hypercube_normal(4, 6, 9)
+    res = run_cases([(case, 0), (case, 3)], 9, stop=1.0)
+    for run in res["s"]:
+        # accel_bias_b = turn-on bias + in-run random walk (5e-5 g/sqrt(Hz) over 1 s):
+        # within 1e-3 sigma of the drawn value
+        np.testing.assert_allclose(run.accel_bias, sigma * z[run.index, :3], atol=1e-3 * sigma)
+    with pytest.raises(CampaignError, match="outside"):
+        run_cases([(case, 4)], 9, stop=1.0)
     assert make_case("p", paper_sensor=True, stratified=4).stratified == 0
     assert all(c.stratified == 30 for c, _ in plan(30)["jobs"] if not c.name.startswith("paper"))
+
+
+def test_a_run_alone_equals_that_run_of_the_campaign() -> None:
+    """Run i of a stratified campaign alone (another process count) is run i of the whole."""
+    case = make_case("m", stratified=30)
+    whole = run_cases([(case, i) for i in range(3)], 2011, stop=10.0, workers=2)["m"]
+    alone = run_cases([(case, 2)], 2011, stop=10.0)["m"][0]
+    assert alone.index == whole[2].index == 2
+    np.testing.assert_array_equal(alone.err, whole[2].err)
+    np.testing.assert_array_equal(alone.accel_bias, whole[2].accel_bias)
+
+
+def test_verify_only_run_is_the_reproduction_campaign_run(tmp_path: Path) -> None:
+    """``ins-cosim verify --seed 2011 --runs 30 --only-run 1`` runs the campaign's run 1."""
+    camp = run_campaign(
+        SCENARIO, tmp_path, runs=30, seed=2011, workers=1, progress=False, only_runs=[1]
+    )
+    (rec,) = camp.records
+    run = run_cases([(make_case("campaign modelled", stratified=30), 1)], 2011)[
+        "campaign modelled"
+    ][0]
+    assert rec.index == 1 and rec.seeds == dict(zip(SEEDED, rec.seeds.values(), strict=True))
+    idx = decimation(len(run.time), 601)
+    np.testing.assert_array_equal(rec.history["time"], run.time[idx])
+    heading = [k for k, r in enumerate(camp.requirements) if r.id == "TA-HDG-1"][0]
+    np.testing.assert_array_equal(rec.history[f"e_{heading}"], run.err[idx, 2])
+    largest = float(np.max(np.abs(run.err[run.window(30.0), 2])))
+    assert rec.metrics["TA-HDG-1"].value == pytest.approx(largest, rel=1e-12)
 
 
 def test_short_campaign_meets_the_requirements() -> None:
@@ -133,9 +160,10 @@ def test_lever_arm_sets_heading_observability() -> None:
     """
     rms_sigma = {}
     for a in (0.0, 10.0, 40.0):
-        h = covariance_analysis(120.0, r0=(a, a, 0.5 * a), dt=0.5)
+        h = transfer_covariance(120.0, r0=(a, a, 0.5 * a), dt=0.5)
         m = h.time >= 30.0
-        rms_sigma[a] = float(np.sqrt(np.mean(h.sigma_nav[m, 2] ** 2)))
+        heading = h.sigma[m, StateLayout.heading] / ARCMIN
+        rms_sigma[a] = float(np.sqrt(np.mean(heading**2)))
     assert rms_sigma[0.0] > HEADING_LIMIT
     assert rms_sigma[0.0] > rms_sigma[10.0] > rms_sigma[40.0]
     res = run_cases([(make_case("l40", lever=40.0), 0)], 2011)

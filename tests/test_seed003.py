@@ -24,11 +24,11 @@ import math
 import numpy as np
 import pytest
 
-from cosim.alignment.sins_campaign import CampaignError, _seeds, block_seeds, run_campaign
-from cosim.alignment.sins_static import ARCMIN
 from cosim.estimation import anees_bounds
 from cosim.reproduce import seed003
-from cosim.scenario import load_scenario
+from cosim.verify.campaign import CampaignError, prepare
+from cosim.verify.seeds import run_seeds
+from models.constants import ARCMIN
 
 SEED = 2024
 N_STATIC = 10
@@ -45,7 +45,7 @@ def _workers() -> int:
 
 @pytest.fixture(scope="module")
 def static_fast() -> object:
-    return run_campaign(
+    return seed003.campaign(
         seed003.STATIC, N_STATIC, SEED, columns=list(seed003.COLUMNS), record_every=10,
         workers=_workers(),
     )  # fmt: skip
@@ -53,7 +53,7 @@ def static_fast() -> object:
 
 @pytest.fixture(scope="module")
 def rotating_fast() -> object:
-    return run_campaign(
+    return seed003.campaign(
         seed003.ROTATING, N_ROTATING, SEED, columns=list(seed003.COLUMNS), record_every=10,
         workers=_workers(),
     )  # fmt: skip
@@ -77,20 +77,26 @@ def _ratio_ok(rms: float, sigma: float, n: int) -> bool:
 # ------------------------------------------------------------------ seeds
 def test_campaign_seeds_follow_the_documented_mapping() -> None:
     names = ["base", "imu", "align"]
-    five = _seeds(names, 7, 5)
-    assert _seeds(names, 7, 3) == five[:3]  # run i does not depend on the number of runs
+    five = [run_seeds(7, i, names) for i in range(5)]
     words = np.random.SeedSequence(7).spawn(5)[4].generate_state(3, dtype=np.uint32)
     assert five[4] == {n: int(w >> 1) for n, w in zip(names, words, strict=True)}
     assert all(0 <= s < 2**31 for run in five for s in run.values())
     assert len({run["imu"] for run in five}) == 5
-    scenario = load_scenario(seed003.ROTATING)
-    assert list(block_seeds(scenario, 7, 1)[0]) == names  # the table has no seed
+    assert prepare(seed003.ROTATING, requirements=False).seeded == names  # the table has none
     with pytest.raises(CampaignError, match="runs"):
-        run_campaign(seed003.STATIC, 0, 1)
-    # the same rule as `ins-cosim verify` (cosim.verify.campaign), so both see the same runs
-    campaign = pytest.importorskip("cosim.verify.campaign")
-    if hasattr(campaign, "run_seeds"):
-        assert all(campaign.run_seeds(7, i, names) == five[i] for i in range(5))
+        seed003.campaign(seed003.STATIC, 0, 1)
+    # the campaign's runs carry the seeds of `ins-cosim verify` (one rule), run by run
+    camp = seed003.campaign(seed003.STATIC, 3, 7, columns=["align.rpy_err"], stop=1.0)
+    assert camp.seeds == five[:3]
+
+
+def test_a_run_alone_equals_that_run_of_the_campaign() -> None:
+    kw = {"columns": ["align.rpy_err", "align.phase"], "stop": 5.0, "workers": 2}
+    whole = seed003.campaign(seed003.STATIC, 4, SEED, **kw)
+    alone = seed003.campaign(seed003.STATIC, 4, SEED, indices=[2], **kw)
+    assert alone.seeds == whole.seeds[2:3]
+    for name, column in whole.columns.items():
+        np.testing.assert_array_equal(alone.columns[name][0], column[2])
 
 
 # ------------------------------------------------------------------ acceptance 1
@@ -100,9 +106,9 @@ def test_coarse_alignment_with_the_seed003_imu_is_within_the_theory(facts: tuple
     Theory (first order): heading = -eps_E / (W cos L) + tan L nabla_E / g, level
     nabla / g; sigma from the turn-on sigmas and the white noise averaged over 5 s.
     """
-    camp = run_campaign(
+    camp = seed003.campaign(
         seed003.STATIC, N_COARSE, SEED, columns=["align.rpy_err", "align.phase"],
-        overrides={"align": {"init_mode": 0}}, stop=5.0, workers=1,
+        parameters={"align": {"init_mode": 0}}, stop=5.0, workers=1,
     )  # fmt: skip
     assert np.all(camp["align.phase"][:, -1] == 1.0)
     err = camp["align.rpy_err"][:, -1, :]
@@ -125,8 +131,8 @@ def test_static_campaign_is_consistent_with_its_covariance(
     # heading is still off by up to a few degrees the information on the north drift is
     # gathered along a slightly wrong axis (up to ~1 % at 300 s)
     ca = analyses["static"]
-    np.testing.assert_allclose(sig[:, i300, 2], ca.at(300.0)[4] / ARCMIN, rtol=3e-2)
-    assert abs(np.median(sig[:, i300, 2]) / (ca.at(300.0)[4] / ARCMIN) - 1.0) < 3e-3
+    np.testing.assert_allclose(sig[:, i300, 2], ca.sigma[ca.index(300.0), 4] / ARCMIN, rtol=3e-2)
+    assert abs(np.median(sig[:, i300, 2]) / (ca.sigma[ca.index(300.0), 4] / ARCMIN) - 1.0) < 3e-3
     assert sig[0, i60, :2].max() < seed003.LEVEL_LIMIT  # the model says: level < 0.5' at 60 s
     # heading at 300 s and the two level axes at 60 s, against the filter's own sigma
     assert _ratio_ok(float(seed003.rms(e[:, i300, 2])), float(sig[:, i300, 2].mean()), N_STATIC)
@@ -147,7 +153,7 @@ def test_rotating_campaign_beats_the_static_limit_consistently(
     limit = seed003.heading_limit(facts[1].tuning.p0_gyro_drift, facts[1].lat) / ARCMIN
     for t in (300.0, 600.0):
         i = camp.index(t)
-        np.testing.assert_allclose(sig[:, i, 2], ca.at(t)[4] / ARCMIN, rtol=3e-2)
+        np.testing.assert_allclose(sig[:, i, 2], ca.sigma[ca.index(t), 4] / ARCMIN, rtol=3e-2)
         assert _ratio_ok(float(seed003.rms(e[:, i, 2])), float(sig[:, i, 2].mean()), N_ROTATING)
     i600 = camp.index(600.0)
     # the model predicts 1.3' at 600 s; even at the top of the 99 % band (x1.66) the
@@ -164,9 +170,9 @@ def test_reproduction_tables_and_plots(
     tmp_path, static_fast: object, rotating_fast: object, analyses: dict, facts: tuple
 ) -> None:
     """The Markdown and the figures from the fast campaigns (no extra simulation)."""
-    coarse = run_campaign(
+    coarse = seed003.campaign(
         seed003.STATIC, 3, SEED, columns=["align.rpy_err", "align.phase"],
-        overrides={"align": {"init_mode": 0}}, stop=5.0,
+        parameters={"align": {"init_mode": 0}}, stop=5.0,
     )  # fmt: skip
     res = seed003.Seed003Run(
         static=static_fast,
@@ -201,7 +207,7 @@ def test_reproduction_tables_and_plots(
 @pytest.mark.slow
 def test_static_campaign_50_runs_meets_acceptance_2() -> None:
     n = 50
-    camp = run_campaign(
+    camp = seed003.campaign(
         seed003.STATIC, n, SEED, columns=list(seed003.COLUMNS), record_every=10, workers=2
     )
     e = camp["align.rpy_err"]
@@ -218,7 +224,7 @@ def test_static_campaign_50_runs_meets_acceptance_2() -> None:
 @pytest.mark.slow
 def test_rotating_campaign_50_runs_meets_acceptance_3() -> None:
     n = 50
-    camp = run_campaign(
+    camp = seed003.campaign(
         seed003.ROTATING, n, SEED, columns=list(seed003.COLUMNS), record_every=10, workers=2
     )
     e, sig = camp["align.rpy_err"], camp["align.rpy_sigma"]

@@ -192,3 +192,19 @@ def test_ctrl_c_keeps_finished_runs_and_resume_completes(tmp_path: Path) -> None
     assert {p.name: p.stat().st_mtime_ns for p in kept} == stamps  # not run again
     reference = run_campaign(scenario, tmp_path / "reference", workers=1, progress=False)
     assert (out / "metrics.csv").read_text() == (reference.out_dir / "metrics.csv").read_text()
+
+
+def test_only_run_reruns_one_run_of_the_campaign(cli, tmp_path: Path) -> None:
+    """``--only-run I`` reruns run I alone: the metrics.csv row of the whole campaign."""
+    whole = cli("verify", DEMO, "--runs", "6", "--workers", "1", "--report", tmp_path / "a",
+                "--no-progress")  # fmt: skip
+    alone = cli("verify", DEMO, "--runs", "6", "--only-run", "4", "--workers", "1",
+                "--report", tmp_path / "b", "--no-progress")  # fmt: skip
+    # one run cannot decide a requirement judged at 95 % confidence: undecided (2)
+    assert whole.code in (0, 2) and alone.code in (0, 2) and not alone.err, alone.err
+    assert "1 run(s) of 6" in alone.out
+    rows_a = (tmp_path / "a" / "metrics.csv").read_text().splitlines()
+    rows_b = (tmp_path / "b" / "metrics.csv").read_text().splitlines()
+    assert rows_b == [rows_a[0], rows_a[5]]  # header, run 4
+    bad = cli("verify", DEMO, "--runs", "6", "--only-run", "6", "--report", tmp_path / "c")
+    assert_one_line_error(bad, "--only-run 6", "runs 0 to 5")

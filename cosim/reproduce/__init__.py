@@ -1,4 +1,4 @@
-"""Reproductions of the source papers (shared/SEEDS.md): one module per paper.
+"""Reproductions of the source papers (README, "References"): one module per paper.
 
 Each module ``seedNNN`` provides::
 

@@ -8,25 +8,29 @@ StrapdownImu, ShipMotion -> MasterIns; filter:
    paper's values (3e-4 g and 0.01 deg/h on every axis), flexure modelled (19 states) and
    ignored (13 states), one run each with the same noise;
 2. **campaigns** of ``runs`` runs with the bias and drift drawn per run (turn-on sigmas
-   3e-4 g, 0.01 deg/h), stratified over the runs (Latin hypercube, :func:`sensor_draws`),
-   flexure modelled and ignored on the same runs;
+   3e-4 g, 0.01 deg/h), stratified over the runs (Latin hypercube: the scenario's
+   ``[campaign] stratify``), flexure modelled and ignored on the same runs;
 3. **lever-arm sweep** ``r_0 = [L, L, L / 2]`` m for ``L`` in 0, 10, 20, 40 (10 is the
    paper's [10, 10, 5]), flexure modelled and ignored, ``min(runs, 10)`` runs each;
 4. **heading sweep**: true mounting heading 0 to 180 deg in 30 deg steps (roll and pitch
    1 deg), ``min(runs, 10)`` runs each;
-5. the **linear covariance analysis** (:func:`cosim.alignment.transfer.covariance_analysis`),
-   rigid lever arm and with flexure, against the issue's figures.
+5. the **linear covariance analysis**
+   (:func:`cosim.alignment.transfer_analysis.transfer_covariance`), rigid lever arm and
+   with flexure, against the issue's figures.
 
-Seeds (the mapping of :func:`cosim.verify.campaign.run_seeds`, the seeds ``ins-cosim verify``
-gives run ``i``)::
+Every run goes through the campaign engine of ``ins-cosim verify``
+(:mod:`cosim.verify.campaign`), with its seeds (:func:`cosim.verify.seeds.run_seeds`)::
 
     state = SeedSequence(seed).spawn(runs)[i].generate_state(3, uint32)
     flex, imu, master seeds of run i = int(state[j] >> 1),  j = 0, 1, 2 (file order)
 
 The turn-on accelerometer bias and gyro drift of run ``i`` are not drawn by the IMU from
-its seed but taken from row ``i`` of one Latin-hypercube design of ``runs`` rows
-(:func:`sensor_draws`; the sweeps use its first rows): the level errors follow the
-drawn bias, and independent draws would make a 30-run level RMS a +-13 % lottery.
+its seed but taken from row ``i`` of one Latin-hypercube design of ``runs`` rows (the
+scenario's ``[campaign] stratify = ["imu.accel_bias", "imu.gyro_bias"]``; the sweeps use
+its first rows): the level errors follow the drawn bias, and independent draws would
+make a 30-run level RMS a +-13 % lottery. So ``ins-cosim verify
+scenarios/transfer_alignment.toml --seed 2011 --runs 30`` runs the "campaign modelled"
+runs, and ``--only-run I`` any one of them alone.
 The same run index has the same seeds and draws in every case, so "modelled" and
 "ignored" (and every sweep point) see the same flexure, sensor errors and master noise.
 
@@ -40,26 +44,23 @@ estimate minus truth, arcmin; ``s`` = its ``rpy_sigma``), over the samples ``t >
 
 from __future__ import annotations
 
-import copy
-import math
 import multiprocessing
 import time
 from collections.abc import Iterable, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from cosim.alignment.transfer import ARCMIN, DEG, DEG_PER_HOUR, G0, covariance_analysis
-from cosim.master import Master
-from cosim.scenario import load_scenario
-from cosim.verify.campaign import latin_hypercube_normal
-from cosim.verify.campaign import run_seeds as campaign_run_seeds
+from cosim.alignment.transfer_analysis import transfer_covariance
+from cosim.alignment.transfer_model import StateLayout
+from cosim.verify.campaign import CampaignError, campaign_jobs, prepare, simulate
+from cosim.verify.records import RunRecord
+from models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0
 
 SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "transfer_alignment.toml"
-#: Blocks with a seed parameter, in file order (the campaign runner's order).
+#: Blocks with a seed parameter, in file order (the campaign engine's order).
 SEEDED = ("flex", "imu", "master")
 #: Start of the accuracy window [s] (heading converges in ~30 s, seed 001 sec. 5).
 T_FROM = 30.0
@@ -99,10 +100,6 @@ PAPER_SENSOR = {
 }
 
 
-class ReproductionError(RuntimeError):
-    """A reproduction run or case is inconsistent (unknown block or parameter, failed run)."""
-
-
 # ----------------------------------------------------------------------------- cases
 @dataclass(frozen=True)
 class Case:
@@ -117,7 +114,7 @@ class Case:
     stratified : int
         0: the slave IMU draws its turn-on accelerometer bias and gyro drift itself (from
         its seed). ``N > 0``: run ``i`` takes row ``i`` of the Latin-hypercube design of
-        ``N`` runs (:func:`sensor_draws`); the index must be below ``N``.
+        ``N`` runs (the scenario's ``[campaign] stratify``); the index must be below ``N``.
     """
 
     name: str
@@ -173,49 +170,6 @@ def make_case(
     return Case(name, ov, 0 if paper_sensor else int(stratified))
 
 
-def sensor_draws(seed: int, runs: int) -> np.ndarray:
-    """Stratified turn-on errors of the slave IMU for a campaign of ``runs`` runs.
-
-    Columns: accelerometer bias x, y, z, gyro drift x, y, z (slave axes), standard
-    normal, from :func:`cosim.verify.campaign.latin_hypercube_normal` (stream 0 of the campaign
-    seed); the runner scales them by the IMU's ``accel_bias_sigma`` and
-    ``gyro_bias_sigma``. Why: the level error is mostly the bias the motion cannot
-    separate, so with independent draws a 30-run campaign's level RMS moves by +-13 %
-    (1 sigma) with the luck of the draw; the design pins each axis's drawn spread to
-    within a few percent of its sigma.
-
-    Parameters
-    ----------
-    seed : int
-        Campaign seed.
-    runs : int
-        Runs of the design (strata per column).
-
-    Returns
-    -------
-    ndarray, shape (runs, 6)
-    """
-    return latin_hypercube_normal(runs, 6, seed, stream=0)
-
-
-def run_seeds(seed: int, index: int) -> dict[str, int]:
-    """Seeds of run ``index`` (see the module docstring).
-
-    Parameters
-    ----------
-    seed : int
-        Campaign seed (>= 0).
-    index : int
-        Run number, 0-based.
-
-    Returns
-    -------
-    dict
-        ``{"flex", "imu", "master"}`` -> seed in [0, 2**31 - 1].
-    """
-    return campaign_run_seeds(int(seed), int(index), SEEDED)
-
-
 # ----------------------------------------------------------------------------- one run
 @dataclass
 class RunHistory:
@@ -226,7 +180,7 @@ class RunHistory:
     case : str
         Case name.
     index : int
-        Run index (its seeds: :func:`run_seeds`).
+        Run index (its seeds: :func:`cosim.verify.seeds.run_seeds`).
     time : ndarray, shape (m,)
         [s].
     err : ndarray, shape (m, 3)
@@ -305,121 +259,37 @@ class RunHistory:
         """True relative attitude (mounting + flexure) at the end: estimate minus error [deg]."""
         return self.rel_rpy[-1] / DEG - self.err[-1] / 60.0
 
-
-class Runner:
-    """The scenario built once; runs any :class:`Case` through :meth:`Master.reset`.
-
-    Parameters
-    ----------
-    scenario : Path
-        Scenario file (default :data:`SCENARIO`).
-    stop : float, optional
-        Stop time [s] (default: the file's).
-    """
-
-    def __init__(self, scenario: Path = SCENARIO, stop: float | None = None) -> None:
-        sc = load_scenario(scenario)
-        if stop is not None:
-            sc.settings = sc.master_settings(stop=float(stop))
-        sc.outputs = [c for c in COLUMNS]
-        self.system, metadata = sc.build()
-        self.master = Master(self.system, sc.settings, metadata)
-        self.base = copy.deepcopy(self.system.parameters)
-        self._used = False
-
-    def close(self) -> None:
-        """Terminate the blocks."""
-        self.master.terminate()
-
-    def _parameters(
-        self, case: Case, seeds: Mapping[str, int], seed: int = 0, index: int = 0
-    ) -> dict[str, dict[str, Any]]:
-        params = copy.deepcopy(self.base)
-        overrides = {b: dict(v) for b, v in case.overrides.items()}
-        if case.stratified:
-            if not 0 <= index < case.stratified:
-                raise ReproductionError(
-                    f"case '{case.name}': run {index} outside its stratified design of "
-                    f"{case.stratified} runs"
-                )
-            z = sensor_draws(seed, case.stratified)[index]
-            imu = self.system.blocks["imu"].variables
-            drawn = overrides.setdefault("imu", {})
-            for k, kind in enumerate(("accel", "gyro")):
-                sigma = float(params["imu"][f"{kind}_bias_sigma"])
-                fixed = [
-                    float(params["imu"].get(f"{kind}_bias[{j}]", imu[f"{kind}_bias[{j}]"].start))
-                    for j in (1, 2, 3)
-                ]
-                drawn[f"{kind}_bias"] = [fixed[j] + sigma * z[3 * k + j] for j in range(3)]
-                drawn[f"{kind}_bias_sigma"] = 0.0
-        for block, values in overrides.items():
-            if block not in self.system.blocks:
-                raise ReproductionError(f"case '{case.name}': no block '{block}'")
-            host = self.system.blocks[block]
-            for name, value in values.items():
-                if isinstance(value, (list, tuple)):
-                    names = [f"{name}[{i + 1}]" for i in range(len(value))]
-                    vals = list(value)
-                else:
-                    names, vals = [name], [value]
-                for n, v in zip(names, vals, strict=True):
-                    if n not in host.variables:
-                        raise ReproductionError(
-                            f"case '{case.name}': block '{block}' has no parameter '{n}'"
-                        )
-                    params.setdefault(block, {})[n] = v
-        for block, seed in seeds.items():
-            params.setdefault(block, {})["seed"] = int(seed)
-        return params
-
-    def run(self, case: Case, index: int, seed: int) -> RunHistory:
-        """Run one case with the seeds of run ``index`` of campaign ``seed``.
+    @classmethod
+    def of(cls, record: RunRecord) -> RunHistory:
+        """What the reproduction keeps of a finished run of the campaign engine.
 
         Parameters
         ----------
-        case : Case
-            The configuration (its overrides; its stratified design, if any).
-        index : int
-            Run number, 0-based (below ``case.stratified`` for a stratified case).
-        seed : int
-            Campaign seed (:func:`run_seeds`, :func:`sensor_draws`).
+        record : RunRecord
+            A completed run with the kept :data:`COLUMNS`.
 
         Returns
         -------
         RunHistory
+
+        Raises
+        ------
+        CampaignError
+            The run failed (its error is in the message).
         """
-        started = time.perf_counter()
-        if self._used:
-            self.master.reset()
-        self._used = True
-        self.system.parameters = self._parameters(case, run_seeds(seed, index), seed, index)
-        result = self.master.run()
-        return RunHistory(
-            case=case.name,
-            index=index,
-            time=np.asarray(result["time"], dtype=float),
-            err=np.asarray(result["align.rpy_err"], dtype=float),
-            sigma=np.asarray(result["align.rpy_sigma"], dtype=float),
-            stage=np.asarray(result["align.stage"], dtype=float),
-            rel_rpy=np.asarray(result["align.rel_rpy"], dtype=float),
-            accel_bias=np.asarray(result["imu.accel_bias_b"], dtype=float)[-1],
-            wall=time.perf_counter() - started,
+        if record.failed:
+            raise CampaignError(f"case '{record.tag}', run {record.index}: {record.error}")
+        return cls(
+            case=record.tag,
+            index=record.index,
+            time=np.asarray(record.column("time"), dtype=float),
+            err=np.asarray(record.column("align.rpy_err"), dtype=float),
+            sigma=np.asarray(record.column("align.rpy_sigma"), dtype=float),
+            stage=np.asarray(record.column("align.stage"), dtype=float),
+            rel_rpy=np.asarray(record.column("align.rel_rpy"), dtype=float),
+            accel_bias=np.asarray(record.column("imu.accel_bias_b"), dtype=float)[-1],
+            wall=record.wall_time,
         )
-
-
-_WORKER: Runner | None = None
-
-
-def _init_worker(scenario: str, stop: float | None) -> None:
-    global _WORKER
-    _WORKER = Runner(Path(scenario), stop)
-
-
-def _work(job: tuple[Case, int, int]) -> RunHistory:
-    case, index, seed = job
-    assert _WORKER is not None
-    return _WORKER.run(case, index, seed)
 
 
 def run_cases(
@@ -430,10 +300,11 @@ def run_cases(
     scenario: Path = SCENARIO,
     stop: float | None = None,
 ) -> dict[str, list[RunHistory]]:
-    """Run ``(case, run index)`` jobs, in this process or in worker processes.
+    """Run ``(case, run index)`` jobs through the campaign engine.
 
     Each worker builds the scenario once and resets it between runs; a run's numbers
-    depend only on its case and seeds, never on the worker.
+    depend only on its case, index and campaign seed, never on the worker or on the
+    other jobs (run ``i`` of a case alone equals run ``i`` of its campaign).
 
     Parameters
     ----------
@@ -452,25 +323,33 @@ def run_cases(
     -------
     dict
         Case name -> its runs, ordered by index.
+
+    Raises
+    ------
+    CampaignError
+        A case with an unknown block or parameter, an index outside its stratified
+        design, or a failed run.
     """
+    prep = prepare(scenario, requirements=False, outputs=COLUMNS)
+    if any(c.stratified for c, _ in jobs) and not prep.stratified:
+        raise CampaignError(
+            f"{scenario}: a stratified case needs [campaign] stratify (the parameters to draw)"
+        )
+    engine_jobs = []
+    for case, index in jobs:
+        engine_jobs += campaign_jobs(
+            prep,
+            seed,
+            case.stratified or index + 1,
+            indices=[index],
+            parameters=case.overrides,
+            stratify=bool(case.stratified),
+            tag=case.name,
+        )
+    records = simulate(prep, engine_jobs, outputs=COLUMNS, stop=stop, workers=workers)
     out: dict[str, list[RunHistory]] = {}
-    if workers <= 1 or len(jobs) <= 1:
-        runner = Runner(scenario, stop)
-        try:
-            results = [runner.run(c, i, seed) for c, i in jobs]
-        finally:
-            runner.close()
-    else:
-        ctx = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(
-            max_workers=workers,
-            mp_context=ctx,
-            initializer=_init_worker,
-            initargs=(str(scenario), stop),
-        ) as pool:
-            results = list(pool.map(_work, [(c, i, seed) for c, i in jobs]))
-    for r in results:
-        out.setdefault(r.case, []).append(r)
+    for r in records:
+        out.setdefault(r.tag, []).append(RunHistory.of(r))
     for runs in out.values():
         runs.sort(key=lambda r: r.index)
     return out
@@ -541,7 +420,7 @@ def stats(
     """
     runs = list(runs)
     if not runs:
-        raise ReproductionError("no runs to pool")
+        raise CampaignError("no runs to pool")
     rms = np.array([r.rms(t_from) for r in runs])
     sig = np.array([r.sigma_rms(t_from) for r in runs])
     fin = np.array([r.final for r in runs])
@@ -555,23 +434,6 @@ def stats(
         bias_draw=np.sqrt(np.mean(np.array([r.accel_bias for r in runs]) ** 2, axis=0))
         / bias_sigma,
     )
-
-
-def level_consistent(s: CampaignStats, tol: float = LEVEL_TOL) -> bool:
-    """Roll and pitch RMS error within ``tol`` of the filter's RMS sigma.
-
-    Parameters
-    ----------
-    s : CampaignStats
-        Pooled statistics of a campaign.
-    tol : float
-        Allowed relative difference (acceptance 1: 0.25).
-
-    Returns
-    -------
-    bool
-    """
-    return bool(np.all(np.abs(s.level_ratio - 1.0) <= tol))
 
 
 # ----------------------------------------------------------------------------- reproduction
@@ -602,12 +464,13 @@ def covariance_lines(dt: float = 0.1) -> tuple[list[str], dict[str, Any]]:
         "| quantity | t [s] | issue | ours, rigid arm | ours, with flexure states | within |",
         "|---|---|---|---|---|---|",
     ]
-    hist = {f: covariance_analysis(120.0, flexure=f, dt=dt) for f in (False, True)}
+    hist = {f: transfer_covariance(120.0, flexure=f, dt=dt) for f in (False, True)}
     for t, q, lo, hi in ISSUE_COVARIANCE:
         got = {}
         for f, h in hist.items():
-            i = h.at(t)
-            got[f] = float(h.sigma_nav[i, 2]) if q == "heading" else float(h.sigma_level_rms[i])
+            nav = h.sigma[h.index(t), StateLayout.att] / ARCMIN
+            level = np.sqrt(0.5 * (nav[0] ** 2 + nav[1] ** 2))
+            got[f] = float(nav[2]) if q == "heading" else float(level)
             values[(f, t, q)] = got[f]
         # tolerance: +-10 % on a single figure ("about"), the stated range +-0.05' otherwise
         ok = (
@@ -626,122 +489,6 @@ def _flex(sigma_arcmin: float) -> dict[str, dict[str, Any]]:
     """Truth and filter flexure sigma (both), ``{block: {parameter: value}}``."""
     sig = [sigma_arcmin * ARCMIN] * 3
     return {"flex": {"sigma": sig}, "align": {"flexure_sigma": sig}}
-
-
-def _rms_curve(runs: Sequence[RunHistory], k: int) -> np.ndarray:
-    return np.sqrt(np.mean(np.array([r.err[:, k] ** 2 for r in runs]), axis=0))
-
-
-def _plot_modelled_ignored(
-    path: Path,
-    single: Mapping[tuple[float, str], RunHistory],
-    camp: Mapping[tuple[float, str], list[RunHistory]],
-    sigmas: Sequence[float],
-) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(3, len(sigmas), figsize=(6 * len(sigmas), 9), sharex=True)
-    axes = np.atleast_2d(axes.T).T if len(sigmas) == 1 else axes
-    colors = {"modelled": "tab:blue", "ignored": "tab:red"}
-    limits = (6.0, 10.0, 25.0)
-    for col, sig in enumerate(sigmas):
-        for k in range(3):
-            ax = axes[k, col]
-            for lab in ("modelled", "ignored"):
-                c = colors[lab]
-                run = single[(sig, lab)]
-                m = run.time >= 5.0
-                t = run.time[m]
-                ax.plot(t, run.err[m, k], color=c, lw=1.2, label=f"paper case, flexure {lab}")
-                ax.fill_between(
-                    t, -3 * run.sigma[m, k], 3 * run.sigma[m, k], color=c, alpha=0.10, lw=0
-                )
-                runs = camp[(sig, lab)]
-                ax.plot(
-                    t, _rms_curve(runs, k)[m], color=c, ls="--", lw=1.0,
-                    label=f"RMS over {len(runs)} runs, flexure {lab}",
-                )  # fmt: skip
-            ax.axhline(0.0, color="k", lw=0.5)
-            if k == 2:
-                ax.axhline(HEADING_LIMIT, color="k", ls=":", lw=0.8, label="7' requirement")
-                ax.axhline(-HEADING_LIMIT, color="k", ls=":", lw=0.8)
-            ax.set_ylim(-limits[k], limits[k])
-            ax.set_ylabel(f"{AXES[k]} error [arcmin]")
-            ax.grid(alpha=0.3)
-        axes[0, col].set_title(f"flexure sigma {sig:g} arcmin (shaded: +-3 sigma of the filter)")
-        axes[-1, col].set_xlabel("time [s]")
-    axes[0, 0].legend(fontsize=7, loc="upper right")
-    fig.suptitle("Seed 001: relative-attitude error, flexure modelled (19 states) and ignored (13)")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-
-
-def _plot_lever(
-    path: Path,
-    table: Mapping[tuple[float, float, str], CampaignStats],
-    cov: Mapping[float, float],
-    sigmas: Sequence[float],
-) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    styles = {sigmas[0]: "-", sigmas[1]: "--"}
-    for sig in sigmas:
-        for lab, c in (("modelled", "tab:blue"), ("ignored", "tab:red")):
-            arms = [a for a in LEVER_ARMS if (sig, a, lab) in table]
-            hd = [table[(sig, a, lab)].rms[2] for a in arms]
-            lv = [math.sqrt(0.5 * np.sum(table[(sig, a, lab)].rms[:2] ** 2)) for a in arms]
-            kw = {"color": c, "ls": styles[sig], "marker": "o"}
-            axes[0].plot(arms, hd, label=f"flexure {sig:g}', {lab}", **kw)
-            axes[1].plot(arms, lv, label=f"flexure {sig:g}', {lab}", **kw)
-    arms = sorted(cov)
-    axes[0].plot(
-        arms, [cov[a] for a in arms], "k:", marker="x", label="covariance analysis (RMS sigma)"
-    )
-    axes[0].axhline(HEADING_LIMIT, color="k", lw=0.6)
-    axes[0].set_yscale("log")
-    axes[0].set_ylabel("heading error RMS from 30 s [arcmin]")
-    axes[1].set_ylabel("level error RMS from 30 s [arcmin]")
-    axes[1].set_yscale("log")
-    for ax in axes:
-        ax.set_xlabel("lever arm L [m], r0 = [L, L, L/2]")
-        ax.grid(alpha=0.3, which="both")
-        ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-
-
-def _plot_headings(path: Path, runs: Mapping[float, list[RunHistory]]) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    fig, ax = plt.subplots(figsize=(9, 4.5))
-    cmap = plt.get_cmap("viridis")
-    for j, (hdg, rs) in enumerate(sorted(runs.items())):
-        e = _rms_curve(rs, 2)
-        color = cmap(j / max(1, len(runs) - 1))
-        ax.semilogy(rs[0].time, np.maximum(e, 1e-3), color=color, label=f"{hdg:g} deg")
-    ax.axhline(HEADING_LIMIT, color="k", ls=":", lw=0.8, label="7'")
-    ax.axvline(T_FROM, color="k", lw=0.5)
-    ax.set_ylim(0.1, 1.5e4)
-    ax.set_xlabel("time [s]")
-    ax.set_ylabel("heading error, RMS over runs [arcmin]")
-    ax.set_title("Initial heading misalignment sweep (flexure modelled)")
-    ax.legend(fontsize=7, ncol=4)
-    ax.grid(alpha=0.3, which="both")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
 
 
 #: Flexure sigmas [arcmin]: the digest's 2' first, then larger ones.
@@ -859,9 +606,10 @@ def reproduce(out_dir: Path, runs: int, seed: int, workers: int | None = None) -
     s_head = {h: st(c) for h, c in p["head"].items()}
     cov_lever = {}
     for a in LEVER_ARMS:
-        h = covariance_analysis(120.0, r0=(a, a, 0.5 * a), dt=0.25)
+        h = transfer_covariance(120.0, r0=(a, a, 0.5 * a), dt=0.25)
         m = h.time >= T_FROM - 1e-9
-        cov_lever[a] = float(np.sqrt(np.mean(h.sigma_nav[m, 2] ** 2)))
+        heading = h.sigma[m, StateLayout.heading] / ARCMIN
+        cov_lever[a] = float(np.sqrt(np.mean(heading**2)))
     sig_plot = (FLEX_SIGMAS[0], FLEX_SIGMAS[-1])
     camp_curves = {(FLEX_SIGMAS[0], lab): res[c.name] for lab, c in p["camp"].items()}
     camp_curves.update(
@@ -870,11 +618,14 @@ def reproduce(out_dir: Path, runs: int, seed: int, workers: int | None = None) -
             for lab in ("modelled", "ignored")
         }
     )
-    _plot_modelled_ignored(
+    # the plot module imports this one (its constants and run types)
+    from cosim.reproduce.seed001_plots import plot_headings, plot_lever, plot_modelled_ignored
+
+    plot_modelled_ignored(
         out_dir / "seed001_modelled_vs_ignored.png", single, camp_curves, sig_plot
     )
-    _plot_lever(out_dir / "seed001_lever_arm.png", s_lever, cov_lever, FLEX_SIGMAS[:2])
-    _plot_headings(
+    plot_lever(out_dir / "seed001_lever_arm.png", s_lever, cov_lever, FLEX_SIGMAS[:2])
+    plot_headings(
         out_dir / "seed001_heading_sweep.png", {h: res[c.name] for h, c in p["head"].items()}
     )
     cov_rows, _ = covariance_lines()
@@ -979,8 +730,9 @@ def reproduce(out_dir: Path, runs: int, seed: int, workers: int | None = None) -
         )
     lines += [
         "",
-        "**Linear covariance analysis** (`cosim.alignment.transfer.covariance_analysis`: the "
-        "small-error model along the ship's closed-form motion, Van Loan every 0.1 s, velocity "
+        "**Linear covariance analysis** "
+        "(`cosim.alignment.transfer_analysis.transfer_covariance`: the small-error model "
+        "along the ship's closed-form motion, Van Loan every 0.1 s, velocity "
         "matching every 0.5 s with 0.01 m/s noise; level = RMS of the north and east sigmas):",
         "",
         *cov_rows,

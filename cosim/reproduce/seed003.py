@@ -7,14 +7,17 @@ block :class:`cosim.alignment.sins_static.SinsStaticAlignment`:
 1. coarse alignment: one run with a perfect IMU, and a campaign of 5 s windows with the
    seed 003 IMU compared with the first-order theory;
 2. fine alignment: a campaign of ``runs`` runs of each scenario (the paper's P0/Q/R,
-   initial misalignment drawn from P0) through :func:`cosim.alignment.sins_campaign.run_campaign`;
+   initial misalignment drawn from P0) through the campaign engine (:func:`campaign`);
    the same campaign seed gives both campaigns the same IMU draws run by run, so the
    comparison of one position with rotation is paired;
-3. the covariance analysis (:func:`cosim.alignment.sins_static.covariance_analysis`,
+3. the covariance analysis (:func:`cosim.alignment.static_model.static_covariance`,
    no simulation) of both cases, with the issue's figures.
 
-Seeds: run ``i`` of a campaign gives the j-th seeded block (file order: base, imu,
-align) the seed ``SeedSequence(seed).spawn(runs)[i].generate_state(3, uint32)[j] >> 1``.
+Seeds: those of ``ins-cosim verify`` (:func:`cosim.verify.seeds.run_seeds`): run ``i`` of
+a campaign gives the j-th seeded block (file order: base, imu, align) the seed
+``SeedSequence(seed).spawn(runs)[i].generate_state(3, uint32)[j] >> 1``, so
+``ins-cosim verify scenarios/sins_north_finding.toml --seed 2024 --runs 50`` runs the
+fine-alignment campaign's runs, and ``--only-run I`` any one of them.
 """
 
 from __future__ import annotations
@@ -28,19 +31,15 @@ from typing import Any
 
 import numpy as np
 
-from cosim.alignment.sins_campaign import CampaignResult, run_campaign
-from cosim.alignment.sins_static import (
-    ARCMIN,
-    ARCSEC,
-    CovarianceHistory,
-    FilterTuning,
-    covariance_analysis,
-    euler_error_jacobian,
-    heading_limit,
-)
+from cosim.alignment.coarse import heading_limit
+from cosim.alignment.nav import euler_rate_matrix_inv
+from cosim.alignment.static_model import FilterTuning, static_covariance
 from cosim.estimation import anees_bounds
+from cosim.estimation.covariance import CovarianceHistory
 from cosim.scenario import load_scenario
-from models.constants import OMEGA_IE
+from cosim.verify.campaign import CampaignError, campaign_jobs, prepare, simulate
+from cosim.verify.records import Histories
+from models.constants import ARCMIN, ARCSEC, OMEGA_IE
 from models.earth import gravity
 from models.turntable import Turntable
 
@@ -197,9 +196,9 @@ class Seed003Run:
 
     Attributes
     ----------
-    static, rotating : CampaignResult
+    static, rotating : Histories
         Fine-alignment campaigns of the one-position and rotating-table scenarios.
-    coarse : CampaignResult
+    coarse : Histories
         Coarse-alignment campaign (``init_mode = 0``, stopped at ``coarse_time``).
     coarse_perfect : ndarray, shape (3,)
         Roll, pitch, heading error after coarse alignment with a perfect IMU [arcmin].
@@ -215,9 +214,9 @@ class Seed003Run:
         Wall time of :func:`run_all` [s].
     """
 
-    static: CampaignResult
-    rotating: CampaignResult
-    coarse: CampaignResult
+    static: Histories
+    rotating: Histories
+    coarse: Histories
     coarse_perfect: np.ndarray
     facts_static: ScenarioFacts
     facts_rotating: ScenarioFacts
@@ -225,6 +224,62 @@ class Seed003Run:
     runs: int
     seed: int
     elapsed: float
+
+
+def campaign(
+    path: Path,
+    runs: int,
+    seed: int,
+    *,
+    columns: list[str] | tuple[str, ...] = COLUMNS,
+    parameters: dict[str, dict[str, Any]] | None = None,
+    stop: float | None = None,
+    record_every: int | None = None,
+    workers: int = 1,
+    indices: list[int] | None = None,
+) -> Histories:
+    """One campaign of a seed 003 scenario through the campaign engine.
+
+    Parameters
+    ----------
+    path : Path
+        Scenario file.
+    runs : int
+        Runs of the campaign (>= 1).
+    seed : int
+        Campaign seed (:func:`cosim.verify.seeds.run_seeds`).
+    columns : sequence of str
+        What to record (``output.variables`` syntax).
+    parameters : dict, optional
+        ``{block: {parameter: SI value}}`` for every run.
+    stop : float, optional
+        Stop time [s] (default the scenario's).
+    record_every : int, optional
+        Record every k-th macro step (default the scenario's).
+    workers : int
+        Processes (1: this process).
+    indices : list of int, optional
+        Only these runs of the campaign (default all).
+
+    Returns
+    -------
+    Histories
+        The recorded columns, stacked over the runs (in run order).
+
+    Raises
+    ------
+    CampaignError
+        ``runs < 1``, or a parameter of an unknown block or name.
+    """
+    if int(runs) < 1:
+        raise CampaignError(f"runs must be >= 1, got {runs}")
+    prep = prepare(path, requirements=False, outputs=list(columns))
+    jobs = campaign_jobs(prep, seed, int(runs), indices=indices, parameters=parameters)
+    workers = max(1, min(int(workers), len(jobs)))
+    records = simulate(
+        prep, jobs, outputs=list(columns), stop=stop, record_every=record_every, workers=workers
+    )
+    return Histories.of(records)
 
 
 def run_all(runs: int, seed: int, workers: int | None = None) -> Seed003Run:
@@ -249,26 +304,24 @@ def run_all(runs: int, seed: int, workers: int | None = None) -> Seed003Run:
     fs, fr = scenario_facts(STATIC), scenario_facts(ROTATING)
     kw: dict[str, Any] = {"columns": list(COLUMNS), "workers": workers}
     every = max(1, int(round(1.0 / fs.step)))
-    static = run_campaign(STATIC, runs, seed, record_every=every, **kw)
-    rotating = run_campaign(
-        ROTATING, runs, seed, record_every=max(1, int(round(1.0 / fr.step))), **kw
-    )
-    coarse = run_campaign(
+    static = campaign(STATIC, runs, seed, record_every=every, **kw)
+    rotating = campaign(ROTATING, runs, seed, record_every=max(1, int(round(1.0 / fr.step))), **kw)
+    coarse = campaign(
         STATIC,
         runs,
         seed,
         columns=["align.rpy_err", "align.phase"],
-        overrides={"align": {"init_mode": 0}},
+        parameters={"align": {"init_mode": 0}},
         stop=fs.coarse_time,
         workers=workers,
     )
     perfect_imu = {k: 0.0 for k in ("gyro_bias_sigma", "gyro_arw", "accel_bias_sigma", "accel_vrw")}
-    perfect = run_campaign(
+    perfect = campaign(
         STATIC,
         1,
         seed,
         columns=["align.rpy_err"],
-        overrides={"align": {"init_mode": 0}, "imu": perfect_imu},
+        parameters={"align": {"init_mode": 0}, "imu": perfect_imu},
         stop=fs.coarse_time,
     )
     cov = analyses(fs, fr)
@@ -302,21 +355,21 @@ def analyses(fs: ScenarioFacts, fr: ScenarioFacts) -> dict[str, CovarianceHistor
     Returns
     -------
     dict
-        Key (see above) -> :class:`~cosim.alignment.sins_static.CovarianceHistory`.
+        Key (see above) -> :class:`~cosim.estimation.covariance.CovarianceHistory`.
     """
     out: dict[Any, CovarianceHistory] = {}
     kw = {"dt": fs.kf_period, "kf_period": fs.kf_period, "coriolis": True}
-    out["static"] = covariance_analysis(
+    out["static"] = static_covariance(
         fs.stop, tuning=fs.tuning, lat=fs.lat, base_rpy=fs.base_rpy, **kw
     )
-    out["rotating"] = covariance_analysis(
+    out["rotating"] = static_covariance(
         fr.stop, tuning=fr.tuning, lat=fr.lat, base_rpy=fr.base_rpy, angle=fr.angle, **kw
     )
     rate = 100.0 * math.pi / 180.0
     for r in (0.1, 0.01):
         tun = FilterTuning(r_vel=r)
-        out[("static", r)] = covariance_analysis(300.0, tuning=tun, dt=0.1, kf_period=0.1)
-        out[("continuous", r)] = covariance_analysis(
+        out[("static", r)] = static_covariance(300.0, tuning=tun, dt=0.1, kf_period=0.1)
+        out[("continuous", r)] = static_covariance(
             600.0, tuning=tun, dt=0.1, kf_period=0.1, angle=lambda t: rate * t
         )
     return out
@@ -327,12 +380,12 @@ def rpy_sigma(cov: CovarianceHistory, base_rpy: np.ndarray) -> np.ndarray:
     """Roll, pitch, heading 1-sigma [arcmin] of a covariance history, shape (m, 3).
 
     The NED angle covariance mapped to Euler-angle errors at the base attitude
-    (:func:`~cosim.alignment.sins_static.euler_error_jacobian`).
+    (:func:`~cosim.alignment.nav.euler_rate_matrix_inv`).
 
     Parameters
     ----------
     cov : CovarianceHistory
-        Its ``P_att`` (NED psi-angle covariance, shape (m, 3, 3) [rad^2]) is used.
+        Its psi-angle block ``P[:, 2:5, 2:5]`` (NED, shape (m, 3, 3) [rad^2]) is used.
     base_rpy : ndarray, shape (3,)
         Base (true) attitude ``[roll, pitch, yaw]`` of ``C_b_n``, NED [rad].
 
@@ -341,8 +394,8 @@ def rpy_sigma(cov: CovarianceHistory, base_rpy: np.ndarray) -> np.ndarray:
     ndarray, shape (m, 3)
         Roll, pitch, heading 1-sigma [arcmin].
     """
-    m = euler_error_jacobian(base_rpy)
-    return np.sqrt(np.einsum("ij,tjk,ik->ti", m, cov.P_att, m)) / ARCMIN
+    m = euler_rate_matrix_inv(base_rpy)
+    return np.sqrt(np.einsum("ij,tjk,ik->ti", m, cov.P[:, 2:5, 2:5], m)) / ARCMIN
 
 
 def rms(x: np.ndarray, axis: int = 0) -> np.ndarray:
@@ -448,7 +501,7 @@ def summary(res: Seed003Run) -> dict[str, Any]:
     s["static_level_ca_60"] = float(np.max(ca_rpy[res.cov["static"].index(60.0), :2]))
     for (case, r, tt), _ in ISSUE_CA.items():
         key = ("static", r) if case == "static" else ("continuous", r)
-        s[f"ca_{case}_{r}_{tt:.0f}"] = float(res.cov[key].at(tt)[4] / ARCMIN)
+        s[f"ca_{case}_{r}_{tt:.0f}"] = float(res.cov[key].sigma[res.cov[key].index(tt), 4] / ARCMIN)
     return s
 
 

@@ -1,0 +1,424 @@
+"""Where the runs of a campaign go: this process, a local pool, or a Dask cluster.
+
+A worker builds the scenario's blocks (loads its FMUs) once per campaign, the first time
+it sees a :class:`WorkerSpec`, and resets them between runs; each :class:`Job` sets its
+parameters on a copy of the built system's own before the run. A run's numbers depend
+only on its job (seeds, parameters, stratified draws), never on the worker that ran it.
+
+- ``workers == 1``: in this process, one after the other.
+- ``workers > 1``: a :class:`ProcessPoolExecutor` whose processes are forked from a
+  ``forkserver`` that imported the simulation code once (where the platform has no
+  ``forkserver``: spawned processes); each builds the blocks in its initializer.
+- ``cluster = "tcp://host:8786"``: a Dask distributed cluster; each worker thread builds
+  the blocks once on its first run. The workers must see the scenario and FMU files at
+  the same paths (a shared file system).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import copy
+import multiprocessing
+import os
+import signal
+import socket
+import sys
+import threading
+import time
+import uuid
+import warnings
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from cosim.errors import SimulationError, UserError
+from cosim.scenario import build_master, load_scenario
+from cosim.verify.records import RunRecord, decimation
+from cosim.verify.requirements import Requirement, RunMetric, error_signal, evaluate
+
+#: Modules the forkserver imports once, so that forked workers start without imports.
+PRELOAD = ["cosim.verify.workers", "cosim.alignment", "models"]
+
+
+class CampaignError(UserError):
+    """A campaign cannot start: bad ``[campaign]`` table, options, jobs or report folder."""
+
+
+@dataclass(frozen=True)
+class WorkerSpec:
+    """What a worker needs to run any run of a campaign (picklable).
+
+    Attributes
+    ----------
+    scenario : str
+        Absolute path of the scenario file.
+    sha256 : str
+        Its hash: a worker that reads a different file refuses to run.
+    fmu_dir : str or None
+        Run built-in models from the FMUs in this folder.
+    requirements : tuple of Requirement
+        Resolved requirements, evaluated on every run (may be empty).
+    history_points : int
+        Samples kept per requirement history.
+    stop : float or None
+        Stop time [s] replacing the scenario's.
+    record_every : int or None
+        Recording interval (macro steps) replacing the scenario's.
+    outputs : tuple of str or None
+        What to record (``output.variables`` syntax), replacing the scenario's.
+    keep : bool
+        Return every recorded column in full, and the run's parameters, in the record
+        (:attr:`RunRecord.columns`, :attr:`RunRecord.parameters`).
+    """
+
+    scenario: str
+    sha256: str
+    fmu_dir: str | None = None
+    requirements: tuple[Requirement, ...] = ()
+    history_points: int = 500
+    stop: float | None = None
+    record_every: int | None = None
+    outputs: tuple[str, ...] | None = None
+    keep: bool = False
+
+
+@dataclass(frozen=True)
+class Job:
+    """One run of a campaign.
+
+    Attributes
+    ----------
+    index : int
+        Run number (its seeds come from it: :func:`cosim.verify.seeds.run_seeds`).
+    seeds : dict
+        Block -> seed; blocks left out keep the seed of the scenario file.
+    parameters : dict
+        ``{block: {parameter: SI value}}`` over the scenario's; a vector parameter may be
+        given as a list (``{"r0": [10, 10, 5]}`` sets ``r0[1..3]``).
+    stratified : tuple
+        ``(block, name, z)`` per stratified parameter
+        (:func:`cosim.verify.seeds.stratified_draws`): the run uses ``name = name +
+        name_sigma * z`` and ``name_sigma = 0``.
+    tag : str
+        A label copied into the record (a reproduction's case name).
+    """
+
+    index: int
+    seeds: Mapping[str, int]
+    parameters: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    stratified: tuple[tuple[str, str, tuple[float, ...]], ...] = ()
+    tag: str = ""
+
+
+def expand_parameters(
+    parameters: Mapping[str, Mapping[str, Any]],
+) -> dict[str, dict[str, Any]]:
+    """Vector values as their components: ``{"r0": [1, 2]}`` -> ``{"r0[1]": 1, "r0[2]": 2}``.
+
+    Parameters
+    ----------
+    parameters : dict
+        ``{block: {parameter: value or list of values}}``.
+
+    Returns
+    -------
+    dict
+        ``{block: {parameter name: value}}``, one entry per scalar variable.
+    """
+    out: dict[str, dict[str, Any]] = {}
+    for block, values in parameters.items():
+        flat = out.setdefault(block, {})
+        for name, value in values.items():
+            if isinstance(value, (list, tuple)):
+                for k, v in enumerate(value):
+                    flat[f"{name}[{k + 1}]"] = v
+            else:
+                flat[name] = value
+    return out
+
+
+class _State:
+    """A worker thread's built system, kept between runs of one campaign."""
+
+    def __init__(self, spec: WorkerSpec) -> None:
+        scenario = load_scenario(spec.scenario)
+        if scenario.sha256 != spec.sha256:
+            raise CampaignError(
+                f"the scenario file {spec.scenario} on worker {worker_id()} differs from the "
+                f"one the campaign started with (sha256 {scenario.sha256[:12]} != "
+                f"{spec.sha256[:12]})"
+            )
+        if spec.outputs is not None:
+            scenario.outputs = list(spec.outputs)
+        self.spec = spec
+        self.master = build_master(
+            scenario, fmu_dir=spec.fmu_dir, stop=spec.stop, record_every=spec.record_every
+        )
+        self.settings = self.master.settings
+        self.system = self.master.system
+        self.base = copy.deepcopy(self.system.parameters)
+        self.used = False
+
+    def parameters(self, job: Job) -> dict[str, dict[str, Any]]:
+        """The run's parameters: the built system's, then the job's, draws and seeds."""
+        params = copy.deepcopy(self.base)
+        for block, values in expand_parameters(job.parameters).items():
+            params.setdefault(block, {}).update(values)
+        for block, name, z in job.stratified:
+            host = self.system.blocks[block]
+            own = params.setdefault(block, {})
+            sigma = float(own.get(f"{name}_sigma", host.variables[f"{name}_sigma"].start))
+            names = (
+                [name] if name in host.variables else [f"{name}[{k + 1}]" for k in range(len(z))]
+            )
+            for n, zk in zip(names, z, strict=True):
+                own[n] = float(own.get(n, host.variables[n].start)) + sigma * zk
+            own[f"{name}_sigma"] = 0.0
+        for block, seed in job.seeds.items():
+            params.setdefault(block, {})["seed"] = int(seed)
+        return params
+
+    def close(self) -> None:
+        with contextlib.suppress(Exception):
+            self.master.terminate()
+
+
+_LOCAL = threading.local()
+
+
+def worker_id() -> str:
+    """``host:pid`` of this process (recorded with each run).
+
+    Returns
+    -------
+    str
+    """
+    return f"{socket.gethostname()}:{os.getpid()}"
+
+
+def _state(spec: WorkerSpec) -> _State:
+    state: _State | None = getattr(_LOCAL, "state", None)
+    if state is not None and state.spec != spec:
+        release_worker_state()
+        state = None
+    if state is None:
+        state = _State(spec)
+        _LOCAL.state = state
+    return state
+
+
+def release_worker_state() -> None:
+    """Terminate the blocks this thread keeps for campaigns (if any)."""
+    state: _State | None = getattr(_LOCAL, "state", None)
+    if state is not None:
+        state.close()
+        _LOCAL.state = None
+
+
+def _init_process_worker(spec: WorkerSpec) -> None:
+    """ProcessPoolExecutor initializer: Ctrl-C is the parent's business; build once.
+
+    The blocks are terminated when the worker process exits (FMU instances freed, their
+    unpacked folders removed): a multiprocessing finalizer, since worker processes end
+    without running ``atexit`` handlers.
+    """
+    from multiprocessing import util
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    _state(spec)
+    util.Finalize(None, release_worker_state, exitpriority=10)
+
+
+def run_one(spec: WorkerSpec, job: Job) -> RunRecord:
+    """Run one job in this worker and evaluate every requirement on it.
+
+    The blocks are built on the first call in a thread and reset between calls. A
+    failing run is returned as a record with ``status = "failed"`` and its error.
+
+    Parameters
+    ----------
+    spec : WorkerSpec
+        The campaign.
+    job : Job
+        The run: index, seeds, parameters, stratified draws.
+
+    Returns
+    -------
+    RunRecord
+    """
+    started, cpu = time.perf_counter(), time.process_time()
+    state = _state(spec)
+    if state.used:
+        try:
+            state.master.reset()
+        except Exception:  # a block that failed may refuse to reset: build it anew
+            release_worker_state()
+            state = _state(spec)
+    state.used = True
+    params = state.parameters(job)
+    state.system.parameters = params
+    result = None
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # loop warnings were shown once by the parent
+        try:
+            result = state.master.run()
+            status, error = "completed", ""
+        except SimulationError as exc:
+            result, status, error = exc.result, "failed", str(exc)
+        except Exception as exc:  # a block raising outside the FMI protocol
+            status, error = "failed", f"{type(exc).__name__}: {exc}"
+            release_worker_state()
+    metrics: dict[str, RunMetric | None] = {r.id: None for r in spec.requirements}
+    history: dict[str, np.ndarray] = {}
+    columns: dict[str, np.ndarray] = {}
+    t_end = float("nan")
+    if result is not None and len(result.data):
+        t_end = float(result.time[-1])
+        idx = decimation(len(result.data), spec.history_points)
+        history["time"] = np.asarray(result.time, dtype=float)[idx]
+        for k, req in enumerate(spec.requirements):
+            t, e, sigma = error_signal(req, result)
+            if status == "completed":
+                metrics[req.id] = evaluate(req, t, e, state.settings.start, state.settings.stop)
+            history[f"e_{k}"] = e[idx]
+            if sigma is not None:
+                history[f"s_{k}"] = sigma[idx]
+        if spec.keep:
+            columns = {n: np.array(result.data[n], dtype=float) for n in result.data.dtype.names}
+    return RunRecord(
+        index=job.index,
+        seeds=dict(job.seeds),
+        status=status,
+        error=error,
+        metrics=metrics,
+        history=history,
+        wall_time=time.perf_counter() - started,
+        cpu_time=time.process_time() - cpu,
+        worker=worker_id(),
+        t_end=t_end,
+        tag=job.tag,
+        columns=columns,
+        parameters=params if spec.keep else {},
+    )
+
+
+def pool_context() -> multiprocessing.context.BaseContext:
+    """The start method of local workers: a preloaded forkserver, else spawn.
+
+    The forkserver starts with the first pool of this process and imports the modules
+    this process has loaded from ``cosim`` and ``models`` by then (for a campaign:
+    everything its scenario's blocks need); every worker is forked from it, with no
+    imports of its own.
+
+    Returns
+    -------
+    multiprocessing context
+    """
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        ctx = multiprocessing.get_context("forkserver")
+        # what this process has imported to check the scenario (its blocks' modules
+        # included): the forkserver imports it once, the workers fork with it loaded
+        loaded = [m for m in sys.modules if m.split(".")[0] in ("cosim", "models")]
+        ctx.set_forkserver_preload([*PRELOAD, *sorted(set(loaded) - set(PRELOAD))])
+        return ctx
+    return multiprocessing.get_context("spawn")
+
+
+def run_jobs(
+    spec: WorkerSpec,
+    jobs: Sequence[Job],
+    done: Callable[[RunRecord], None],
+    *,
+    workers: int = 1,
+    cluster: str | None = None,
+) -> None:
+    """Run jobs and hand each finished record to ``done`` (in completion order).
+
+    Parameters
+    ----------
+    spec : WorkerSpec
+        The campaign.
+    jobs : sequence of Job
+        The runs.
+    done : callable
+        Called in this process with each :class:`RunRecord` as it finishes.
+    workers : int
+        Local processes (1: this process).
+    cluster : str, optional
+        Address of a Dask scheduler; replaces local workers.
+
+    Raises
+    ------
+    CampaignError
+        The Dask scheduler cannot be reached.
+    """
+    jobs = list(jobs)
+    if not jobs:
+        return
+    if cluster:
+        _run_dask(spec, jobs, done, cluster)
+    elif workers > 1 and len(jobs) > 1:
+        _run_pool(spec, jobs, done, workers)
+    else:
+        try:
+            for job in jobs:
+                done(run_one(spec, job))
+        finally:
+            release_worker_state()
+
+
+def _run_pool(
+    spec: WorkerSpec, jobs: list[Job], done: Callable[[RunRecord], None], workers: int
+) -> None:
+    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+    pool = ProcessPoolExecutor(
+        max_workers=min(workers, len(jobs)),
+        mp_context=pool_context(),
+        initializer=_init_process_worker,
+        initargs=(spec,),
+    )
+    try:
+        pending = {pool.submit(run_one, spec, job) for job in jobs}
+        while pending:
+            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in finished:
+                done(fut.result())
+    except BaseException:
+        # Ctrl-C or a crash: drop queued runs and stop the workers now, without waiting
+        # for the runs in progress (they are not on disk and will run again on --resume).
+        procs = list((getattr(pool, "_processes", None) or {}).values())  # no API in 3.11
+        pool.shutdown(wait=False, cancel_futures=True)
+        for proc in procs:
+            with contextlib.suppress(Exception):
+                proc.terminate()
+        raise
+    pool.shutdown(wait=True)
+
+
+def _run_dask(
+    spec: WorkerSpec, jobs: list[Job], done: Callable[[RunRecord], None], address: str
+) -> None:
+    from distributed import Client, as_completed
+
+    try:
+        client = Client(address, timeout="30s")
+    except (OSError, TimeoutError, ValueError) as exc:
+        raise CampaignError(f"cannot connect to the Dask scheduler at {address}: {exc}") from exc
+    token = uuid.uuid4().hex[:12]
+    futures = []
+    try:
+        futures = [
+            client.submit(run_one, spec, job, key=f"ins-cosim-run-{token}-{n:05d}")
+            for n, job in enumerate(jobs)
+        ]
+        for fut in as_completed(futures):
+            done(fut.result())
+    except BaseException:
+        with contextlib.suppress(Exception):
+            client.cancel(futures)
+        raise
+    finally:
+        client.close()
