@@ -12,10 +12,13 @@ Every filter is its error model plus its block, on one navigation core:
 - :mod:`cosim.alignment.coarse`: analytic (TRIAD) coarse alignment;
 - :mod:`cosim.alignment.static_model` + :mod:`cosim.alignment.sins_static`: the
   stationary 10-state KF (seed 003);
-- :mod:`cosim.alignment.transfer_model` + :mod:`cosim.alignment.transfer`: shipboard
-  transfer alignment, 19-state scaled UKF (seed 001);
-- :mod:`cosim.alignment.hrg_model` + :mod:`cosim.alignment.hrg_two_position`: the
-  two-position HRG platform alignment, EKF / UPF / KF (seed 000);
+- :mod:`cosim.alignment.transfer_model` (+ ``transfer_filter``, the two-stage
+  estimator, and ``transfer_analysis``, its covariance analysis) +
+  :mod:`cosim.alignment.transfer`: shipboard transfer alignment, 19-state scaled UKF
+  (seed 001);
+- :mod:`cosim.alignment.hrg_model` (+ ``hrg_filters``) +
+  :mod:`cosim.alignment.hrg_two_position`: the two-position HRG platform alignment,
+  EKF / UPF / KF (seed 000);
 - :func:`cosim.estimation.covariance.covariance_analysis`: the one covariance loop the
   filters' linear analyses run on.
 
@@ -28,9 +31,6 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from models import find_blocks
-from models.block import Block
-
 #: Block class name -> the module of this package that defines it.
 BLOCKS = {
     "HrgTwoPositionAlignment": "hrg_two_position",
@@ -38,7 +38,7 @@ BLOCKS = {
     "TransferAlignment": "transfer",
 }
 
-__all__ = [*BLOCKS, "BLOCKS", "registry"]
+__all__ = [*BLOCKS, "BLOCKS"]
 
 
 def __getattr__(name: str) -> Any:
@@ -48,14 +48,3 @@ def __getattr__(name: str) -> Any:
         globals()[name] = cls
         return cls
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-def registry() -> dict[str, type[Block]]:
-    """All alignment-filter block classes in this package, by class name.
-
-    Returns
-    -------
-    dict
-        ``{class name: class}``, sorted by name (every module of the package is imported).
-    """
-    return find_blocks(__name__, __path__)

@@ -85,8 +85,6 @@ STATES = (
     "eps_z",
 )
 N_STATES = 10
-#: The misalignment ``psi`` in the state.
-ATT = slice(2, 5)
 
 
 # ------------------------------------------------------------------ tuning

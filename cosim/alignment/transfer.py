@@ -7,7 +7,9 @@ with the master's attitude (so the slave's initial attitude error is the unknown
 seed 001: roll 1 deg, pitch 1 deg, heading 30 deg, plus the deck flexure), and corrects it
 with a scaled unscented Kalman filter whose process model is the nonlinear error model of
 seed 001, eq. (12)-(30), rewritten in our frames (NED, FRD) in
-:mod:`cosim.alignment.transfer_model`.
+:mod:`cosim.alignment.transfer_model`. The estimator itself (mechanisation, period sums,
+the two stages below) is :class:`cosim.alignment.transfer_filter.TransferFilter`; the
+block validates its parameters, feeds it and publishes.
 
 
 Filter: two stages, both scaled UKFs (Merwe sigma points ``ukf_alpha``, ``ukf_beta``,
@@ -85,40 +87,26 @@ stage is not designed for (README, seed 001).
 
 from __future__ import annotations
 
-import math
 from collections import deque
 
 import numpy as np
 from numpy.typing import NDArray
 
-from cosim.alignment.nav import MOVING_BASE, Strapdown, euler_rate_matrix_inv, nav_rates
+from cosim.alignment.nav import euler_rate_matrix_inv, nav_rates
+from cosim.alignment.transfer_filter import StageSettings, TransferFilter
 from cosim.alignment.transfer_model import (
-    PeriodSums,
     StateLayout,
     TransferConfigError,
     TransferRuntimeError,
     TransferTuning,
-    flexure_matrix,
     master_rate,
-    propagate,
-    reset_jacobian,
-)
-from cosim.estimation import (
-    MerweScaledSigmaPoints,
-    UnscentedKalmanFilter,
-    UnscentedParticleFilter,
-    angle_mean_fn,
-    angle_residual_fn,
-    van_loan,
 )
 from models.block import Block, input_, output, parameter
 from models.constants import ARCMIN, DEG
-from models.conventions import cross, dcm_to_euler, euler_to_dcm, wrap_angle
-from models.lever_arm import r0_matrix
+from models.conventions import dcm_to_euler, euler_to_dcm, wrap_angle
 
 FloatArray = NDArray[np.float64]
 
-_I3 = np.eye(3)
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
@@ -251,24 +239,24 @@ class TransferAlignment(Block):
     def initialize(self) -> None:
         self._check()
         self._layout = StateLayout(bool(self.flexure_states))
-        self._tune = self.tuning()
-        self._R0 = r0_matrix(np.asarray(self.r0, dtype=float))
-        self._r0 = np.asarray(self.r0, dtype=float).copy()
+        settings = StageSettings(
+            hypotheses=int(self.acquire_hypotheses),
+            sigma=float(self.acquire_sigma),
+            weight=float(self.acquire_weight),
+            min_time=float(self.acquire_min_time),
+            relevel_sigma=float(self.relevel_sigma),
+            ukf_alpha=float(self.ukf_alpha),
+            ukf_beta=float(self.ukf_beta),
+            ukf_kappa=float(self.ukf_kappa),
+        )
+        self._filter = TransferFilter(
+            self._layout, self.tuning(), self.r0, settings, float(self.lat_master)
+        )
         self._hist: deque[FloatArray] = deque(maxlen=5)
         self._hist.appendleft(euler_to_dcm(np.asarray(self.rpy_master, dtype=float)))
         self._h: float | None = None
         self._k = 0
         self._n = 0
-        self._sd: Strapdown | None = None
-        self._sums = PeriodSums()
-        self._ukf: UnscentedKalmanFilter | None = None
-        self._bank: UnscentedParticleFilter | None = None
-        self._best = 0
-        self._m_prev: FloatArray | None = None
-        self._flex_cache: dict[float, tuple[FloatArray, FloatArray]] = {}
-        lay = self._layout
-        self._P_show = self._tune.P0(lay, float(self.lat_master))
-        self._x_show = np.zeros(lay.n)
         self._P_cached: FloatArray | None = None
         self.nis = 0.0
         self.stage = 0.0
@@ -288,7 +276,6 @@ class TransferAlignment(Block):
                 f"TransferAlignment needs a constant step; got {h} s after {self._h} s"
             )
 
-    # ------------------------------------------------------------------ helpers
     def _master_state(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Newest master attitude, rate w.r.t. earth (master axes) and velocity."""
         c = self._hist[0]
@@ -297,236 +284,48 @@ class TransferAlignment(Block):
         w_eb = master_rate(list(self._hist), self._h) + c.T @ w_en
         return c, w_eb, v_m
 
-    def _flex(self, T: float) -> tuple[FloatArray, FloatArray]:
-        key = round(T, 12)
-        if key not in self._flex_cache:
-            F, G, Qc = self._tune.flexure_model()
-            self._flex_cache[key] = van_loan(F, G, Qc, T)
-        return self._flex_cache[key]
-
-    def _make_points(self) -> MerweScaledSigmaPoints:
-        return MerweScaledSigmaPoints(
-            self._layout.n, float(self.ukf_alpha), float(self.ukf_beta), float(self.ukf_kappa)
-        )
-
-    def _fx(self, x: FloatArray, dt: float, sums: PeriodSums) -> FloatArray:
-        return propagate(x, sums, self._layout)
-
-    def _hx(self, x: FloatArray) -> FloatArray:
-        return x[..., StateLayout.dv]
-
-    def _start(self) -> None:
-        """Start the mechanisation with the master's attitude and the acquisition bank."""
-        c, w_eb, v_m = self._master_state()
-        lay = self._layout
-        v_lr = c @ cross(w_eb, self._r0)
-        lat = float(self.lat_master)
-        self._sd = Strapdown(c, lat, float(self.h_master), v_m + v_lr, options=MOVING_BASE)
-        self._sums = PeriodSums(lat=lat, height=self._sd.height)
-        m0 = flexure_matrix(c, w_eb, self._R0) if lay.flexure else None
-        self._m_prev = m0
-        k = int(self.acquire_hypotheses)
-        bank = UnscentedParticleFilter(
-            lay.n,
-            3,
-            self._fx,
-            self._hx,
-            self._make_points(),
-            rng=np.random.default_rng(0),  # never used: deterministic proposal, no resampling
-            n_particles=k,
-            resample_threshold=0.0,
-            proposal="mean",
-            residual_x=angle_residual_fn([lay.heading]),
-            x_mean_fn=angle_mean_fn([lay.heading]),
-        )
-        parts = np.zeros((k, lay.n))
-        parts[:, lay.heading] = wrap_angle(2.0 * np.pi * np.arange(k) / k)
-        bank.set_particles(parts, self._tune.P0(lay, lat, m0))
-        self._bank = bank
-        self._best = 0
-        self._show_bank()
-        self.stage = 1.0
-
-    def _show_bank(self) -> None:
-        bank = self._bank
-        self._best = int(np.argmax(bank.weights))
-        self._x_show = bank.particles[self._best]
-        self._P_show = bank.particle_P[self._best]
-
-    def _process_noise(self, T: float, m1: FloatArray | None) -> FloatArray:
-        lay, tu = self._layout, self._tune
-        Q = np.zeros((lay.n, lay.n))
-        Q[lay.dv, lay.dv] = tu.q_accel**2 * T * _I3
-        Q[lay.att, lay.att] = tu.q_gyro**2 * T * _I3
-        if lay.flexure:
-            _, Qf = self._flex(T)
-            mq = m1 @ Qf
-            Q[lay.xi, lay.xi] = Qf
-            Q[lay.dv, lay.dv] += mq @ m1.T
-            Q[lay.dv, lay.xi] = mq
-            Q[lay.xi, lay.dv] = mq.T
-        return 0.5 * (Q + Q.T)
-
-    def _update(self) -> None:
-        """One filter period: predict with the period sums, velocity update, feedback."""
-        sd, lay = self._sd, self._layout
-        sums = self._sums
-        T = sums.T
-        c, w_eb, v_m = self._master_state()
-        m1 = None
-        if lay.flexure:
-            m1 = flexure_matrix(c, w_eb, self._R0)
-            sums.m0, sums.m1 = self._m_prev, m1
-            sums.phi_flex = self._flex(T)[0]
-            self._m_prev = m1
-        Q = self._process_noise(T, m1)
-        R = self._tune.r_vel**2 * _I3
-        z = sd.v_n - v_m - c @ cross(w_eb, self._r0)
-        if self.stage == 1.0:
-            self._bank.step(z, T, Q=Q, R=R, fx_args={"sums": sums})
-            self._show_bank()
-            bank = self._bank
-            self.nis = float(bank.particle_nis[self._best])
-            sig_best = math.sqrt(bank.particle_P[self._best][lay.heading, lay.heading])
-            # hypotheses that converged onto the best one's heading count with it
-            gap = np.abs(wrap_angle(bank.particles[:, lay.heading] - self._x_show[lay.heading]))
-            weight = float(np.sum(bank.weights[gap < self.acquire_sigma]))
-            t = self._n * self._h
-            done = (
-                t >= self.acquire_min_time - 1e-9
-                and weight >= self.acquire_weight
-                and sig_best < self.acquire_sigma
-            )
-            if done:
-                self._restart_fine(m1)
-            self._new_period()
-            return
-        ukf = self._ukf
-        ukf.predict(T, Q=Q, sums=sums)
-        ukf.update(z, R=R)
-        self.nis = float(ukf.y @ np.linalg.solve(ukf.S, ukf.y))
-        x = ukf.x.copy()
-        P = self._feedback(x, ukf.P, m1)
-        x_new = np.zeros(lay.n)
-        if lay.flexure:
-            x_new[lay.xi] = x[lay.xi]
-            x_new[lay.dv] = m1 @ x[lay.xi]
-        ukf.x = x_new
-        ukf.P = P
-        self._x_show = ukf.x
-        self._P_show = ukf.P
-        self._new_period()
-
-    def _new_period(self) -> None:
-        """Refresh the mechanisation's constants and restart the period sums."""
-        sd = self._sd
-        sd.refresh()
-        self._sums = PeriodSums(lat=sd.lat, height=sd.height)
-
-    def _feedback(self, x: FloatArray, P: FloatArray, m1: FloatArray | None) -> FloatArray:
-        """Correct the mechanisation with the estimate ``x``; return the reset covariance."""
-        lay, sd = self._layout, self._sd
-        x[lay.heading] = wrap_angle(x[lay.heading])
-        d_v = x[lay.dv] - (m1 @ x[lay.xi] if lay.flexure else 0.0)
-        sd.correct(rotation=euler_to_dcm(x[lay.att]).T, d_v=d_v, d_lat=float(x[lay.dl]))
-        sd.accel_bias = sd.accel_bias + x[lay.nabla]
-        sd.gyro_bias = sd.gyro_bias + x[lay.eps]
-        J = reset_jacobian(x, lay)
-        P = J @ P @ J.T
-        return 0.5 * (P + P.T)
-
-    def _restart_fine(self, m1: FloatArray | None) -> None:
-        """End the acquisition (stage 1) and start the fine alignment (stage 2).
-
-        The most probable hypothesis of the bank is fed back into the mechanisation
-        (attitude, velocity, latitude). In stage 1 the heading error is large and the
-        Gaussian approximation is poor; what it leaves in the weakly observable
-        directions (accelerometer bias against level tilt, flexure, gyro drift) is not
-        trustworthy. So those estimates are discarded (back to their priors,
-        uncorrelated, in the slave-velocity form ``dv = dV - M xi``) and the level
-        variance is increased by ``relevel_sigma^2``: stage 2, quasi-linear, splits
-        tilt and bias afresh. Stage 2 is a single UKF with the same model.
-        """
-        lay, sd = self._layout, self._sd
-        n = lay.n
-        x = self._bank.particles[self._best].copy()
-        x[lay.nabla] = 0.0  # discarded: not fed back
-        x[lay.eps] = 0.0
-        P = self._feedback(x, self._bank.particle_P[self._best], m1)
-        S_inv = np.eye(n)
-        if lay.flexure:
-            S_inv[lay.dv, lay.xi] = -m1
-        P = S_inv @ P @ S_inv.T
-        P0 = self._tune.P0(lay, float(sd.lat))
-        blocks = [lay.nabla, lay.eps] + ([lay.xi] if lay.flexure else [])
-        for blk in blocks:
-            P[blk, :] = 0.0
-            P[:, blk] = 0.0
-            P[blk, blk] = P0[blk, blk]
-        P[4, 4] += self.relevel_sigma**2
-        P[5, 5] += self.relevel_sigma**2
-        if lay.flexure:
-            S = np.eye(n)
-            S[lay.dv, lay.xi] = m1
-            P = S @ P @ S.T
-        ukf = UnscentedKalmanFilter(
-            n,
-            3,
-            self._fx,
-            self._hx,
-            self._make_points(),
-            residual_x=angle_residual_fn([lay.heading]),
-            x_mean_fn=angle_mean_fn([lay.heading]),
-        )
-        ukf.x = np.zeros(n)
-        ukf.P = 0.5 * (P + P.T)
-        self._ukf = ukf
-        self._bank = None
-        self._x_show = ukf.x
-        self._P_show = ukf.P
-        self.stage = 2.0
-
     # ------------------------------------------------------------------ stepping
     def step(self, t: float, h: float) -> None:
         self._check_step(h)
         self._hist.appendleft(euler_to_dcm(np.asarray(self.rpy_master, dtype=float)))
         self._n += 1
-        if self._sd is None:
+        f = self._filter
+        if f.nav is None:
             if len(self._hist) == self._hist.maxlen:
-                self._start()
+                f.start(*self._master_state(), float(self.lat_master), float(self.h_master))
         else:
-            self._sd.step(
-                np.asarray(self.dtheta_s, dtype=float), np.asarray(self.dv_s, dtype=float), h
-            )
-            self._sums.add(self._sd, h)
+            f.step(np.asarray(self.dtheta_s, dtype=float), np.asarray(self.dv_s, dtype=float), h)
             if self._n % self._k == 0:
-                self._update()
+                f.update(self._n * self._h, *self._master_state())
+                self.nis = f.nis
+        self.stage = f.stage
         self._publish()
 
     def _publish(self) -> None:
-        lay = self._layout
-        if self._P_show is not self._P_cached:
-            P = self._P_show
+        lay, f = self._layout, self._filter
+        x_show = f.x_show
+        if f.P_show is not self._P_cached:
+            P = f.P_show
             self._P_cached = P
             self._P_att = P[lay.att, lay.att].copy()
             self._P_att_inv = np.linalg.inv(self._P_att)
             self.accel_bias_sigma = np.sqrt(np.diag(P[lay.nabla, lay.nabla]))
             self.gyro_drift_sigma = np.sqrt(np.diag(P[lay.eps, lay.eps]))
             if lay.flexure:
-                self.flex = self._x_show[7:10] / ARCMIN
+                self.flex = x_show[7:10] / ARCMIN
                 self.flex_sigma = np.sqrt(np.diag(P[7:10, 7:10])) / ARCMIN
             else:
                 self.flex = np.zeros(3)
                 self.flex_sigma = np.zeros(3)
-            sd = self._sd
-            self.accel_bias = (sd.accel_bias if sd is not None else 0.0) + self._x_show[lay.nabla]
-            self.gyro_drift = (sd.gyro_bias if sd is not None else 0.0) + self._x_show[lay.eps]
-        if self._sd is None:
+            sd = f.nav
+            self.accel_bias = (sd.accel_bias if sd is not None else 0.0) + x_show[lay.nabla]
+            self.gyro_drift = (sd.gyro_bias if sd is not None else 0.0) + x_show[lay.eps]
+        if f.nav is None:
             c_est = self._hist[0]
         else:  # stage 1 runs open loop: apply the best hypothesis' attitude error
-            c_est = self._sd.C_s_n
-            if self.stage == 1.0:
-                c_est = euler_to_dcm(self._x_show[lay.att]).T @ c_est
+            c_est = f.nav.C_s_n
+            if f.stage == 1.0:
+                c_est = euler_to_dcm(x_show[lay.att]).T @ c_est
         c_m = euler_to_dcm(np.asarray(self.rpy_m_true, dtype=float))
         c_s = euler_to_dcm(np.asarray(self.rpy_s_true, dtype=float))
         rel_est = dcm_to_euler(c_m.T @ c_est)
