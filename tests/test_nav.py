@@ -26,7 +26,11 @@ from cosim.alignment.nav import (
     table_axis_coning,
 )
 from cosim.alignment.transfer_model import PeriodSums
+from cosim.blocks import InProcessHost
+from cosim.master import Connection, Master, MasterSettings, System
 from models.conventions import dcm_to_rotvec, euler_to_dcm, euler_to_dcm_3, rotvec_to_dcm_3
+from models.stationary_base import StationaryBase
+from models.strapdown_imu import StrapdownImu
 
 # sins_static.Strapdown: 200 steps of 0.1 s on a tilted table, one correction after 100
 STATIC_C = [
@@ -174,3 +178,79 @@ def test_small_rotation_helpers() -> None:
     np.testing.assert_allclose(
         euler_rate_matrix_inv(rpy) @ euler_rate_matrix(rpy), np.eye(3), atol=1e-14
     )
+
+
+# The README's example ("Writing an alignment filter"), verbatim after its path comment.
+TOY_LEVELLING = '''
+import numpy as np
+
+from cosim.alignment.nav import STATIC_BASE, Strapdown
+from cosim.estimation import KalmanFilter
+from models.block import Block, input_, output, parameter
+from models.conventions import dcm_to_euler_3, rotvec_to_dcm_3
+
+
+# ---- error model: x = [dv_N, dv_E, psi_N, psi_E], dv_N' = g psi_E, dv_E' = -g psi_N
+def transition(g: float, h: float) -> np.ndarray:
+    A = np.zeros((4, 4))
+    A[0, 3], A[1, 2] = g * h, -g * h
+    return np.eye(4) + A + 0.5 * A @ A
+
+
+H = np.hstack([np.eye(2), np.zeros((2, 2))])  # the zero-velocity update sees dv_N, dv_E
+
+
+# ---- block: FMI variables, strapdown, filter, closed-loop feedback
+class ToyLevelling(Block):
+    """Levels a stationary IMU with zero-velocity updates (roll and pitch only)."""
+
+    variables = (
+        parameter("lat", 0.785, "rad", "latitude"),
+        parameter("r_vel", 0.01, "m/s", "zero-velocity measurement sigma"),
+        input_("dtheta_s", (0.0, 0.0, 0.0), "rad", "angle increment, sensor axes"),
+        input_("dv_s", (0.0, 0.0, 0.0), "m/s", "velocity increment, sensor axes"),
+        output("level", (0.0, 0.0), "rad", "estimated roll and pitch"),
+    )
+    default_step = 0.1
+
+    def initialize(self) -> None:
+        self._nav = Strapdown(np.eye(3), float(self.lat), options=STATIC_BASE)
+        self._kf = KalmanFilter(4, 2)
+        self._kf.P = np.diag([0.1**2, 0.1**2, 0.02**2, 0.02**2])
+        self._kf.H, self._kf.R = H, float(self.r_vel) ** 2
+
+    def step(self, t: float, h: float) -> None:
+        nav, kf = self._nav, self._kf
+        nav.step(np.asarray(self.dtheta_s), np.asarray(self.dv_s), h)
+        kf.predict(F=transition(nav.g, h))
+        kf.update(nav.v_n[:2])
+        x = kf.x
+        nav.correct(rotation=rotvec_to_dcm_3([x[2], x[3], 0.0]), d_v=np.array([*x[:2], 0.0]))
+        kf.x = np.zeros(4)
+        self.level = dcm_to_euler_3(nav.C_s_n)[:2]
+'''
+
+
+def test_the_readme_example_filter_levels_a_tilted_imu(tmp_path, monkeypatch) -> None:
+    """The example filter runs on the navigation core and returns the base's tilts."""
+    (tmp_path / "toy_level.py").write_text(TOY_LEVELLING)
+    monkeypatch.syspath_prepend(str(tmp_path))
+    from toy_level import ToyLevelling
+
+    def vec(src: str, out: str, dst: str, inp: str) -> list[Connection]:
+        return [Connection(src, f"{out}[{i}]", dst, f"{inp}[{i}]") for i in (1, 2, 3)]
+
+    blocks = {
+        "base": InProcessHost("base", StationaryBase),
+        "imu": InProcessHost("imu", StrapdownImu),
+        "align": InProcessHost("align", ToyLevelling),
+    }
+    links = vec("base", "dtheta_b", "imu", "dtheta_b") + vec("base", "dv_b", "imu", "dv_b")
+    links += vec("imu", "dtheta_meas_b", "align", "dtheta_s")
+    links += vec("imu", "dv_meas_b", "align", "dv_s")
+    params = {"base": {"lat0": 0.785, "rpy0[1]": 0.01, "rpy0[2]": -0.005}, "imu": {}, "align": {}}
+    record = [("align", "level[1]"), ("align", "level[2]")]
+    system = System(blocks, links, parameters=params, record=record)
+    d = Master(system, MasterSettings(0.1, 60.0)).run().data
+    assert abs(d["align.level[1]"][-1] - 0.01) < 1e-6
+    assert abs(d["align.level[2]"][-1] + 0.005) < 1e-6
