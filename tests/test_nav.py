@@ -28,6 +28,7 @@ from cosim.alignment.nav import (
 from cosim.alignment.transfer_model import PeriodSums
 from cosim.blocks import InProcessHost
 from cosim.master import Connection, Master, MasterSettings, System
+from models.constants import OMEGA_IE
 from models.conventions import dcm_to_rotvec, euler_to_dcm, euler_to_dcm_3, rotvec_to_dcm_3
 from models.stationary_base import StationaryBase
 from models.strapdown_imu import StrapdownImu
@@ -94,7 +95,7 @@ def _inputs(n: int, h: float, rate: float) -> tuple[np.ndarray, np.ndarray]:
 
 def test_static_base_preset_reproduces_the_old_static_integrator() -> None:
     dth, dv = _inputs(200, 0.1, 1.7453292519943295)
-    c_s_t = euler_to_dcm_3(np.array([45.0, -35.264, 0.0]) * math.pi / 180)
+    c_s_t = euler_to_dcm_3(np.array([45.0, -35.264, 0.0]) * math.pi / 180)  # as recorded
     c0 = euler_to_dcm_3([0.01, -0.02, 0.5]) @ c_s_t
     nav = Strapdown(c0, 0.7, 12.0, options=STATIC_BASE, table_axis=c_s_t[2, :])
     for k in range(200):
@@ -141,7 +142,7 @@ def test_the_presets_differ_only_in_their_options() -> None:
     """On a perfect static IMU both presets hold the attitude; options are validated."""
     lat, h = 0.6, 0.1
     c = euler_to_dcm_3([0.01, -0.02, 1.0])
-    w_ie = np.array([7.292115e-5 * math.cos(lat), 0.0, -7.292115e-5 * math.sin(lat)])
+    w_ie = np.array([OMEGA_IE * math.cos(lat), 0.0, -OMEGA_IE * math.sin(lat)])
     for opts in (STATIC_BASE, MOVING_BASE):
         nav = Strapdown(c, lat, 0.0, options=opts)
         f_s = c.T @ np.array([0.0, 0.0, -nav.g])
