@@ -89,3 +89,24 @@ def test_cluster_sizes_and_argument_checks() -> None:
         allan_variance(np.zeros(10), -1.0, 1)
     with pytest.raises(ValueError):
         edf_overlapping(10, 1, "flicker")
+
+
+@pytest.mark.parametrize("kind", ["white", "random_walk", "increments"])
+def test_equals_allantools_oadev_to_1e_12(kind: str) -> None:
+    # cosim.estimation.allan stays (README, "Real sensor data"): the model tests use it on
+    # (n, 3) records and on increments without a dependency of models/ on allantools;
+    # it must be the same estimator as allantools' oadev, which characterize uses.
+    allantools = pytest.importorskip("allantools")
+    rng = np.random.default_rng(15)
+    n = 50_000
+    y = rng.standard_normal(n) * 1e-3 + 0.7
+    if kind == "random_walk":
+        y = np.cumsum(y - 0.7) * 1e-2
+    m = cluster_sizes(n)
+    if kind == "increments":
+        tau, ours = allan_deviation(y * DT, DT, m, increments=True)
+    else:
+        tau, ours = allan_deviation(y, DT, m)
+    taus, theirs, _, _ = allantools.oadev(y, rate=1.0 / DT, data_type="freq", taus=tau)
+    np.testing.assert_allclose(taus, tau, rtol=1e-15)
+    np.testing.assert_allclose(ours, theirs, rtol=1e-12, atol=0.0)
