@@ -78,7 +78,8 @@ class PositionFilter:
     Parameters
     ----------
     method : int
-        0 EKF, 1 UPF, 2 KF (linear platform-frame model); see the module docstring.
+        0 EKF, 1 UPF, 2 KF (linear platform-frame model); see the module docstring and
+        :mod:`cosim.alignment.hrg_model`.
     x0 : ndarray, shape (4,)
         Prior mean.
     P0 : ndarray, shape (4, 4)

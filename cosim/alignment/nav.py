@@ -482,10 +482,10 @@ class Strapdown:
         if o.vertical:
             v_new = v + dv_n + (self._g_n - cross(cor, v_ref)) * h
         else:
-            vn, ve, _ = v.tolist()
-            rn_, re_, _ = v_ref.tolist()
+            v_n, v_e, _ = v.tolist()
+            ref_n, ref_e, _ = v_ref.tolist()
             k = cor[2] * h  # -(2 w_ie + w_en) x v, horizontal, v_D = 0: [c_D v_E, -c_D v_N]
-            v_new = np.array([vn + dv_n[0] + k * re_, ve + dv_n[1] - k * rn_, 0.0])
+            v_new = np.array([v_n + dv_n[0] + k * ref_e, v_e + dv_n[1] - k * ref_n, 0.0])
         if o.transport_rate:
             self.lat += v_ref[0] * h / self._rm
         self.C_prev, self.phi, self.dv_n, self.w_in, self.cor = c0, phi, dv_n, w_in, cor

@@ -41,10 +41,11 @@ State (19; 13 with ``flexure_states = 0``, the paper's "flexure ignored" case)
 
 Error model (continuous time, exact in ``E``)
 ---------------------------------------------
-The mechanisation (below) integrates ``C^' = C^ [w~_is x] - [w^_in x] C^`` and
-``v^' = C^ f~ - (2 w^_ie + w^_en) x v^ + g`` with the measured (bias-compensated) rate
-``w~ = w_is + eps`` and specific force ``f~ = f_s + nabla``, where ``w_is`` and ``f_s``
-are the slave's **true** rate and specific force: they include the flexure rate and the
+The mechanisation (:data:`cosim.alignment.nav.MOVING_BASE`) integrates
+``C^' = C^ [w~_is x] - [w^_in x] C^`` and ``v^' = C^ f~ - (2 w^_ie + w^_en) x v^ + g``
+with the measured (bias-compensated) rate ``w~ = w_is + eps`` and specific force
+``f~ = f_s + nabla``, where ``w_is`` and ``f_s`` are the slave's **true** rate and
+specific force: they include the flexure rate and the
 lever-arm accelerations, which the slave's sensors measure. Differentiating ``E``::
 
     E' = [w x] E,   w = C^ eps + (E - I) w^_in - E dw_in                     (eq. 26-29)
