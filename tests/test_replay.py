@@ -22,23 +22,17 @@ import pytest
 import cosim
 from cosim.errors import SimulationError
 from cosim.scenario import BlockSpec
-from cosim.sensors.logs import ImuLog
+from cosim.sensors.logs import ImuLog, write_csv
 from cosim.sensors.replay import ImuLogReplay, ReplayError
 from models.constants import DEG
 
 ROOT = Path(__file__).resolve().parent.parent
 SEED003 = ROOT / "scenarios" / "sins_north_finding.toml"
-HEADER = "time [s],gyro_x [rad],gyro_y [rad],gyro_z [rad],acc_x [m/s],acc_y [m/s],acc_z [m/s]"
 
 
 def write_increment_log(path: Path, time: np.ndarray, dtheta: np.ndarray, dv: np.ndarray) -> Path:
     """A CSV log of increments, every float written with repr (exact round trip)."""
-    rows = np.column_stack([time, dtheta, dv])
-    with path.open("w") as f:
-        f.write(HEADER + "\n")
-        for row in rows:
-            f.write(",".join(repr(float(x)) for x in row) + "\n")
-    return path
+    return write_csv(path, time, dtheta, dv)
 
 
 def seed003_with_imu_recorded(stop: str = "300 s") -> cosim.RunResult:

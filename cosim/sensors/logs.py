@@ -724,3 +724,39 @@ class ImuLog:
                 sums[j] = [math.fsum(sums[j] + [math.fsum(col)])]
         total = np.array([s[0] for s in sums])
         return LogSummary(n, t_first, t_last, self.dt, self._dropped, total[:3], total[3:])
+
+
+#: Header of the logs :func:`write_csv` writes (increments in SI units).
+INCREMENT_HEADER = (
+    "time [s],gyro_x [rad],gyro_y [rad],gyro_z [rad],acc_x [m/s],acc_y [m/s],acc_z [m/s]"
+)
+
+
+def write_csv(path: str | Path, time: np.ndarray, dtheta: np.ndarray, dv: np.ndarray) -> Path:
+    """Write an increment log that this module reads back exactly.
+
+    Every value is written with ``repr`` (shortest round-trip text), so the log replays
+    the increments bit for bit (:class:`~cosim.sensors.replay.ImuLogReplay`).
+
+    Parameters
+    ----------
+    path : str or Path
+        The ``.csv`` file (overwritten).
+    time : array_like, shape (n,)
+        Sample times [s], the end of each sample interval.
+    dtheta : array_like, shape (n, 3)
+        Angle increments, body axes [rad].
+    dv : array_like, shape (n, 3)
+        Velocity increments, body axes [m/s].
+
+    Returns
+    -------
+    Path
+    """
+    rows = np.column_stack([np.asarray(time, dtype=float), dtheta, dv])
+    path = Path(path)
+    with path.open("w") as f:
+        f.write(INCREMENT_HEADER + "\n")
+        for row in rows.tolist():
+            f.write(",".join(map(repr, row)) + "\n")
+    return path
