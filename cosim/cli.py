@@ -1,5 +1,5 @@
-"""Command line: ``ins-cosim run | check | fmus | verify | characterize | check-fmu | export-ssp
-| reproduce``.
+"""Command line: ``ins-cosim run | check | fmus | verify | characterize | place | check-fmu
+| export-ssp | reproduce``.
 
 A user's mistake (bad scenario, missing FMU, failing block, bad option) prints one
 message naming the file, key, block or variable, and exits non-zero without a traceback:
@@ -342,6 +342,34 @@ def characterize(
     paths = write_outputs(result, out)
     click.echo(paths["toml"].read_text().rstrip())
     click.echo(f"wrote {paths['png']}, {paths['csv']}, {paths['json']} and {paths['toml']}")
+
+
+@main.command()
+@click.argument("real_report", type=click.Path(path_type=Path))
+@click.argument("campaign_report", type=click.Path(path_type=Path))
+@click.option(
+    "--out",
+    "out",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Folder for placement.md and placement.json (default: REAL_REPORT).",
+)
+def place(real_report: Path, campaign_report: Path, out: Path | None) -> None:
+    """Place the real run of REAL_REPORT in CAMPAIGN_REPORT: its percentile per requirement.
+
+    Both are `verify --report` folders with the same requirements. A real run outside the
+    simulated distribution is stated as a finding; the exit code is 0 (3: bad input).
+    """
+    from cosim.sensors.placement import format_placement, place, read_report, write_placement
+
+    try:
+        placements = place(read_report(real_report), read_report(campaign_report))
+    except UserError as exc:
+        _fail(exc)
+    text = format_placement(placements, str(real_report), str(campaign_report))
+    paths = write_placement(placements, out or real_report, str(real_report), str(campaign_report))
+    click.echo(text.rstrip())
+    click.echo(f"wrote {paths['md']} and {paths['json']}")
 
 
 @main.command("export-ssp")

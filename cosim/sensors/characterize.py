@@ -298,6 +298,11 @@ class AxisFit:
     dt: float
     boot: np.ndarray = field(repr=False, default_factory=lambda: np.zeros((0, 4)))
 
+    @property
+    def resolved(self) -> np.ndarray:
+        """``value`` where the term is resolved (its interval excludes 0), else 0; shape (4,)."""
+        return np.where(self.low > 0.0, self.value, 0.0)
+
     def model(self, tau: np.ndarray) -> np.ndarray:
         """Fitted Allan deviation at ``tau``.
 
@@ -318,11 +323,11 @@ class AxisFit:
         Returns
         -------
         sigma : float
-            Stationary std [unit]; 0 when no flicker was fitted.
+            Stationary std [unit]; 0 when no flicker was resolved.
         tau_c : float
             Correlation time [s]: the ``tau`` of the fitted curve's minimum / ``x_peak``.
         """
-        b = self.value[2]
+        b = self.resolved[2]
         if b <= 0.0:
             return 0.0, 3600.0
         grid = np.geomspace(self.tau[0], self.tau[-1], 400)

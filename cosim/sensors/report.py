@@ -17,7 +17,9 @@ file                     content
 The log must be static (the sensor at rest, no rotation other than the Earth's): the
 mean (gravity, Earth rate, fixed bias) does not enter the Allan deviation, but motion
 would. The StrapdownImu takes one value per triad: the parameter block gives the root
-mean square over the three axes of each term (per-axis values in the json).
+mean square over the three axes of each term, an axis where the term is not resolved
+(its confidence interval reaches zero) counting zero (per-axis values and upper bounds
+in the json).
 """
 
 from __future__ import annotations
@@ -103,7 +105,9 @@ class Characterization:
         return [self.axes[f"{prefix}_{a}"] for a in "xyz"]
 
     def rms(self, prefix: str, j: int) -> float:
-        """Root mean square over the triad's axes of term ``j`` (SI).
+        """Root mean square over the triad's axes of term ``j`` where resolved (SI).
+
+        An axis on which the term is not resolved (its interval reaches 0) counts 0.
 
         Parameters
         ----------
@@ -116,7 +120,7 @@ class Characterization:
         -------
         float
         """
-        return math.sqrt(sum(f.value[j] ** 2 for f in self.triad(prefix)) / 3.0)
+        return math.sqrt(sum(f.resolved[j] ** 2 for f in self.triad(prefix)) / 3.0)
 
     def gauss_markov(self, prefix: str) -> tuple[float, float]:
         """Triad's Gauss-Markov bias: RMS sigma, mean correlation time (axes with flicker).
@@ -232,8 +236,9 @@ def parameter_block(result: Characterization) -> str:
         f"# ins-cosim characterize {result.log.name} (sha256 {result.sha256[:12]}): "
         f"{result.samples} samples at {1.0 / result.dt:.6g} Hz "
         f"({result.samples * result.dt:.6g} s)",
-        "# RMS over the three axes of each triad; bias instability as a first-order "
-        "Gauss-Markov bias",
+        "# RMS over the three axes of each triad (0 where a term is not resolved: its upper "
+        "bound is in characterization.json);",
+        "# bias instability as a first-order Gauss-Markov bias",
         "# (matches the flicker floor only around its minimum); turn-on bias, scale factor and",
         "# misalignment are not observable in one static log: set them from the data sheet.",
         f"# closest grade preset: {result.grade.name} ({result.distance:.2f} decades)",
