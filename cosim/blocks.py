@@ -24,6 +24,7 @@ import importlib
 import re
 import shutil
 import tempfile
+import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
@@ -31,7 +32,12 @@ from typing import Any
 
 import models  # noqa: F401  (imported before any FMU, so FMUs of ours reuse this copy)
 from cosim.errors import FmuError, UnitError
-from cosim.units import Unit, unit_from_fmi
+from cosim.units import Unit, name_disagreement, unit_from_fmi
+
+
+class UnitWarning(UserWarning):
+    """An FMU's unit name says something else than its definition (the definition is used)."""
+
 
 #: Variable types that connections and the recorder handle.
 REAL = "Real"
@@ -508,10 +514,19 @@ class FmuHost(BlockHost):
         except Exception as exc:
             raise FmuError(f"block '{name}': cannot read FMU '{path}': {exc}") from exc
         if md.coSimulation is None:
+            has = [
+                label
+                for label, part in (
+                    ("Model Exchange", md.modelExchange),
+                    ("Scheduled Execution", getattr(md, "scheduledExecution", None)),
+                )
+                if part is not None
+            ]
+            interfaces = " and ".join(has) or "no interface"
             raise FmuError(
-                f"block '{name}': FMU '{path}' implements only Model Exchange; ins-cosim "
-                f"steps blocks as Co-Simulation units. Export it with the Co-Simulation "
-                f"interface (or ask its vendor for a Co-Simulation FMU)."
+                f"block '{name}': FMU '{path}' implements only {interfaces}; ins-cosim steps "
+                f"blocks as Co-Simulation units. Export it with the "
+                f"Co-Simulation interface (or ask its vendor for a Co-Simulation FMU)."
             )
         if md.fmiVersion not in ("2.0", "3.0"):
             raise FmuError(
@@ -526,6 +541,9 @@ class FmuHost(BlockHost):
             self.variables = fmu_variables(md)
         except FmuError as exc:
             raise FmuError(f"block '{name}': FMU '{path}': {exc}") from exc
+        notes = {name_disagreement(v.unit_def) for v in self.variables.values() if v.unit_def}
+        for note in sorted(n for n in notes if n):
+            warnings.warn(f"block '{name}': FMU '{path.name}': {note}", UnitWarning, stacklevel=2)
         self._state = "none"
         self._unzipdir = tempfile.mkdtemp(prefix=f"ins_cosim_{name}_")
         try:

@@ -1,5 +1,4 @@
-"""Command line: ``ins-cosim run | check | fmus | verify | characterize | place | check-fmu
-| export-ssp | reproduce``.
+"""Command line: ``ins-cosim run | check | fmus | verify | check-fmu | export-ssp | reproduce``.
 
 A user's mistake (bad scenario, missing FMU, failing block, bad option) prints one
 message naming the file, key, block or variable, and exits non-zero without a traceback:
@@ -35,6 +34,17 @@ def _echo_sources(scenario) -> None:  # noqa: ANN001  (a cosim.scenario.Scenario
     for spec in scenario.blocks.values():
         where = f"FMU {spec.source}" if spec.kind == "fmu" else f"in-process {spec.source}"
         click.echo(f"  {spec.name:<{width}}  {where}")
+
+
+def _check_roles(scenario, master) -> None:  # noqa: ANN001  (Scenario, Master)
+    """Refuse required role inputs left unconnected (terminates the master when it does)."""
+    from cosim.interop.interfaces import check_role_inputs
+
+    try:
+        check_role_inputs(scenario, master.system, master.metadata.get("unconnected", {}))
+    except BaseException:
+        master.terminate()
+        raise
 
 
 class _Command(click.Command):
@@ -84,6 +94,7 @@ def run(scenario: Path, out: Path, fmu_dir: Path | None, stop: str | None, plot:
         sc = load_scenario(scenario)
         master = build_master(sc, fmu_dir=fmu_dir, stop=stop)
         system = master.system
+        _check_roles(sc, master)
         n_blocks = len(system.blocks)
         click.echo(
             f"running '{sc.name}': {n_blocks} blocks, {master.settings.n_steps} steps of "
@@ -127,6 +138,7 @@ def check(scenario: Path, fmu_dir: Path | None) -> None:
         sc = load_scenario(scenario)
         master = build_master(sc, fmu_dir=fmu_dir)
         system = master.system
+        _check_roles(sc, master)
         try:
             master.warn_loops()
         finally:
@@ -283,9 +295,20 @@ def verify(
     help="TOML file with the rename map to apply ([rename] or [blocks.<name>.rename]).",
 )
 @click.option("--block", default=None, help="Block name in the printed rename table.")
-def check_fmu(fmu: Path, role: str, rename_file: Path | None, block: str | None) -> None:
-    """Report how FMU fills a role: variables, causality, units, capabilities, rename map.
+@click.option(
+    "--scenario",
+    "scenario",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Print the edits that swap FMU in for --block of this scenario (block table, "
+    "connection lines, entries to remove).",
+)
+def check_fmu(
+    fmu: Path, role: str, rename_file: Path | None, block: str | None, scenario: Path | None
+) -> None:
+    """Report how FMU fills a role: every variable, units, capabilities, rename map.
 
+    With --scenario, also the scenario edits of the swap, each ready to paste.
     Exit code 0 when it fills the role (with the printed rename map), 1 when it does not.
     """
     from cosim.interop.interfaces import check_fmu as check_role
@@ -296,80 +319,16 @@ def check_fmu(fmu: Path, role: str, rename_file: Path | None, block: str | None)
         report = check_role(fmu, role, rename)
     except UserError as exc:
         _fail(exc)
-    click.echo(format_report(report, block or report.match.role.name))
+    name = block or report.match.role.name
+    click.echo(format_report(report, name))
+    if scenario is not None:
+        from cosim.interop.fmu_check import scenario_edits
+
+        try:
+            click.echo("\n".join(scenario_edits(report, scenario, name)))
+        except UserError as exc:
+            _fail(exc)
     sys.exit(0 if report.satisfied else 1)
-
-
-@main.command()
-@click.argument("log", type=click.Path(path_type=Path))
-@click.option(
-    "--out",
-    "out",
-    type=click.Path(path_type=Path),
-    required=True,
-    help="Folder for allan.csv, allan.png, characterization.json and imu_parameters.toml.",
-)
-@click.option(
-    "--sample-rate", type=float, default=None, help="Log rate [Hz] (default: timestamps)."
-)
-@click.option("--jitter", type=float, default=0.05, show_default=True, help="Timestamp tolerance.")
-@click.option("--drop-duplicates", is_flag=True, help="Drop rows repeating the previous row.")
-@click.option("--bootstrap", type=int, default=100, show_default=True, help="Bootstrap records.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Bootstrap seed.")
-def characterize(
-    log: Path,
-    out: Path,
-    sample_rate: float | None,
-    jitter: float,
-    drop_duplicates: bool,
-    bootstrap: int,
-    seed: int,
-) -> None:
-    """Allan analysis of a static IMU LOG: noise terms, plot, StrapdownImu parameters."""
-    from cosim.sensors.report import characterize_log, write_outputs
-
-    try:
-        result = characterize_log(
-            log,
-            sample_rate=sample_rate,
-            jitter=jitter,
-            duplicates="drop" if drop_duplicates else "error",
-            boot=bootstrap,
-            seed=seed,
-        )
-    except UserError as exc:
-        _fail(exc)
-    paths = write_outputs(result, out)
-    click.echo(paths["toml"].read_text().rstrip())
-    click.echo(f"wrote {paths['png']}, {paths['csv']}, {paths['json']} and {paths['toml']}")
-
-
-@main.command()
-@click.argument("real_report", type=click.Path(path_type=Path))
-@click.argument("campaign_report", type=click.Path(path_type=Path))
-@click.option(
-    "--out",
-    "out",
-    type=click.Path(path_type=Path),
-    default=None,
-    help="Folder for placement.md and placement.json (default: REAL_REPORT).",
-)
-def place(real_report: Path, campaign_report: Path, out: Path | None) -> None:
-    """Place the real run of REAL_REPORT in CAMPAIGN_REPORT: its percentile per requirement.
-
-    Both are `verify --report` folders with the same requirements. A real run outside the
-    simulated distribution is stated as a finding; the exit code is 0 (3: bad input).
-    """
-    from cosim.sensors.placement import format_placement, place, read_report, write_placement
-
-    try:
-        placements = place(read_report(real_report), read_report(campaign_report))
-    except UserError as exc:
-        _fail(exc)
-    text = format_placement(placements, str(real_report), str(campaign_report))
-    paths = write_placement(placements, out or real_report, str(real_report), str(campaign_report))
-    click.echo(text.rstrip())
-    click.echo(f"wrote {paths['md']} and {paths['json']}")
 
 
 @main.command("export-ssp")

@@ -18,6 +18,9 @@ Format (README, "Scenario files", is the user's reference)::
     rate = 1                    # steps every k-th macro step
     parameters = { tau = "300 s", sigma = "2 arcmin", seed = 1 }
     # rename = { "vendor_name" = "our_name[1]" }   # expose FMU variables under our names
+    # role = "imu"                 # the role it fills (fmus/interfaces/): `check` then
+    #                              # refuses a required role input left unconnected
+    # unconnected_ok = ["angle"]   # inputs meant to stay on their start values (no warning)
 
     connections = ["flexure.x -> sensor.u"]   # vectors expand: a.v -> b.w wires [1]..[n]
 
@@ -36,6 +39,7 @@ import hashlib
 import importlib
 import re
 import tomllib
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -47,13 +51,27 @@ from cosim.master import GAUSS_SEIDEL, Connection, Master, MasterSettings, Syste
 from cosim.units import conversion_factor, resolve_unit, to_unit
 
 TOP_KEYS = {"scenario", "master", "blocks", "connections", "output", "requirements", "campaign"}
-BLOCK_KEYS = {"model", "fmu", "class", "rate", "parameters", "description", "rename"}
+BLOCK_KEYS = {
+    "model",
+    "fmu",
+    "class",
+    "rate",
+    "parameters",
+    "description",
+    "rename",
+    "role",
+    "unconnected_ok",
+}
 MASTER_KEYS = {"step", "stop", "start", "coupling"}
 SETTING_KEYS = {"step", "stop", "start", "coupling", "record_every"}
 OUTPUT_KEYS = {"variables", "every"}
 _LINK = re.compile(r"^\s*(\w+)\.([\w\[\]]+)\s*->\s*(\w+)\.([\w\[\]]+)\s*$")
 _NAME = re.compile(r"^[A-Za-z_]\w*$")
 _DUPLICATE = re.compile(r"Cannot (?:declare|overwrite) \('blocks', '(\w+)'\) twice \(at (line \d+)")
+
+
+class UnconnectedInputWarning(UserWarning):
+    """An input is neither connected nor set: the block runs on its start value."""
 
 
 @dataclass
@@ -74,6 +92,10 @@ class BlockSpec:
         Raw values as written (units not yet applied).
     rename : dict
         The block's own variable name -> the name the scenario uses (``rename`` table).
+    role : str
+        The role the block fills (``role`` key; empty when not stated).
+    unconnected_ok : list of str
+        Inputs (scalar or vector base names) meant to run on their start values.
     """
 
     name: str
@@ -82,6 +104,8 @@ class BlockSpec:
     rate: int = 1
     parameters: dict[str, Any] = field(default_factory=dict)
     rename: dict[str, str] = field(default_factory=dict)
+    role: str = ""
+    unconnected_ok: list[str] = field(default_factory=list)
 
 
 @dataclass
@@ -212,7 +236,7 @@ class Scenario:
                 name: self._parameters(spec, hosts[name]) for name, spec in self.blocks.items()
             }
             connections = self._connections(hosts)
-            self._check_inputs(hosts, parameters, connections)
+            unconnected = self._check_inputs(hosts, parameters, connections)
             record = self._record(hosts)
         except Exception:
             for host in hosts.values():
@@ -228,7 +252,10 @@ class Scenario:
             rates={n: s.rate for n, s in self.blocks.items()},
             record=record,
         )
-        return system, self._metadata(hosts, parameters, system)
+        metadata = self._metadata(hosts, parameters, system)
+        # inputs that run on their start values (connected to nothing, set by nothing)
+        metadata["unconnected"] = unconnected
+        return system, metadata
 
     # ----------------------------------------------------------------- blocks
     def _host(self, spec: BlockSpec) -> BlockHost:
@@ -408,9 +435,16 @@ class Scenario:
         hosts: dict[str, BlockHost],
         parameters: dict[str, dict[str, Any]],
         connections: list[Connection],
-    ) -> None:
+    ) -> dict[str, dict[str, Any]]:
+        """Refuse inputs with no value; warn about those left on their start values.
+
+        Returns block -> {input: start value} of every input left on its start value.
+        """
         wired = {(c.dst_block, c.dst_var) for c in connections}
+        unconnected: dict[str, dict[str, Any]] = {}
         for name, host in hosts.items():
+            ok = set(self.blocks[name].unconnected_ok)
+            left: list[Variable] = []
             for v in host.by_causality("input"):
                 if (name, v.name) in wired or v.name in parameters[name]:
                     continue
@@ -420,6 +454,36 @@ class Scenario:
                         f"connect it or give it a value under blocks.{name}.parameters",
                         key=f"blocks.{name}",
                     )
+                unconnected.setdefault(name, {})[v.name] = v.start
+                if v.name not in ok and v.name.split("[", 1)[0] not in ok:
+                    left.append(v)
+            if left:
+                bases = _bases([v.name for v in left])
+                values = ", ".join(f"{v.name} = {_plain(v.start)!r}" for v in left)
+                warnings.warn(
+                    f"{self.path}: block '{name}': input(s) not connected, running on their "
+                    f"start values: {values}; connect them, or state it with "
+                    f"[blocks.{name}] unconnected_ok = {bases!r}",
+                    UnconnectedInputWarning,
+                    stacklevel=2,
+                )
+        for name, spec in self.blocks.items():
+            unknown = [
+                n
+                for n in spec.unconnected_ok
+                if not any(
+                    v.name == n or v.name.split("[", 1)[0] == n
+                    for v in hosts[name].by_causality("input")
+                )
+            ]
+            if unknown:
+                inputs = _bases([v.name for v in hosts[name].by_causality("input")])
+                raise self.error(
+                    f"unconnected_ok names {', '.join(unknown)}, which are not inputs of block "
+                    f"'{name}'; its inputs: {', '.join(inputs) or 'none'}",
+                    key=f"blocks.{name}.unconnected_ok",
+                )
+        return unconnected
 
     def _record(self, hosts: dict[str, BlockHost]) -> list[tuple[str, str]] | None:
         if self.outputs is None:
@@ -488,6 +552,11 @@ def _why(exc: UnitError, a: Variable, b: Variable) -> str:
     if ua.compatible(ub):
         return exc.message
     return f"dimensions {ua.si_text()} and {ub.si_text()}"
+
+
+def _plain(value: Any) -> Any:
+    """A numpy scalar as the Python number it holds (for messages)."""
+    return value.item() if hasattr(value, "item") else value
 
 
 def _own(var: Variable) -> str:
@@ -659,7 +728,23 @@ def load_scenario(path: str | Path) -> Scenario:
                 file=f,
                 key=f"{key}.rename",
             )
-        blocks[name] = BlockSpec(name, kind, source, rate, dict(params), dict(rename))
+        role = table.get("role", "")
+        if not isinstance(role, str):
+            raise ScenarioError(
+                f"expected a role name such as 'imu', got {role!r}", file=f, key=f"{key}.role"
+            )
+        unconnected_ok = table.get("unconnected_ok", [])
+        if not isinstance(unconnected_ok, list) or not all(
+            isinstance(n, str) for n in unconnected_ok
+        ):
+            raise ScenarioError(
+                f"expected a list of input names such as ['angle'], got {unconnected_ok!r}",
+                file=f,
+                key=f"{key}.unconnected_ok",
+            )
+        blocks[name] = BlockSpec(
+            name, kind, source, rate, dict(params), dict(rename), role, list(unconnected_ok)
+        )
     connections = doc.get("connections", [])
     if not isinstance(connections, list):
         raise ScenarioError(

@@ -34,6 +34,7 @@ Units of FMU variables
 from __future__ import annotations
 
 import functools
+import math
 import re
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -42,7 +43,7 @@ from typing import Any
 import numpy as np
 import pint
 
-from cosim.errors import UnitError
+from cosim.errors import UnitError, shorten
 from models.constants import G0, PPM
 
 _REG = pint.UnitRegistry()
@@ -54,7 +55,7 @@ _REG.define(f"nav_ppm = {PPM!r}")
 _TOKENS = {"g": "nav_g", "mg": "nav_mg", "ug": "nav_ug", "µg": "nav_ug", "ppm": "nav_ppm"}
 _WORD = re.compile(r"(?<![\w.])(µg|ug|mg|g|ppm)(?![\w(])")
 _POWER = re.compile(r"(?<=[A-Za-z])(\d+)\b")
-_SQRT = re.compile(r"sqrt\(([^()]*)\)")
+_PAREN = re.compile(r"(?<![\w.])sqrt\s*\(|[()]")
 
 
 @dataclass(frozen=True)
@@ -119,13 +120,35 @@ FMI_BASE_UNITS = {
 _SYMBOL = {dim: symbol for symbol, dim in FMI_BASE_UNITS.items()}
 
 
+#: The longest unit string read (characters); a longer one is refused unread.
+MAX_UNIT_CHARS = 200
+
+
+def _sqrt_powers(s: str) -> str:
+    """``sqrt(X)`` -> ``(X)**0.5`` for every (nested) sqrt, in one pass over the text."""
+    out: list[str] = []
+    opened: list[bool] = []  # per open parenthesis: was it a sqrt(
+    i = 0
+    for m in _PAREN.finditer(s):
+        out.append(s[i : m.start()])
+        i = m.end()
+        token = m.group()
+        if token == ")":
+            out.append(")**0.5" if opened and opened.pop() else ")")
+        else:
+            opened.append(token != "(")
+            out.append("(")
+    out.append(s[i:])
+    return "".join(out)
+
+
 def _normalise(text: str) -> str:
     s = text.strip()
     if s in ("", "1", "-"):
         return "dimensionless"
     s = s.replace("·", "*").replace("^", "**")
-    while _SQRT.search(s):
-        s = _SQRT.sub(r"(\1)**0.5", s)
+    if "sqrt" in s:
+        s = _sqrt_powers(s)
     s = _WORD.sub(lambda m: _TOKENS[m.group(1)], s)
     s = _POWER.sub(r"**\1", s)
     return s
@@ -149,13 +172,17 @@ def parse_unit(text: str) -> Unit:
     UnitError
         If the unit is not known.
     """
+    if len(text) > MAX_UNIT_CHARS:
+        raise UnitError(
+            f"unit {shorten(text)} is longer than the limit of {MAX_UNIT_CHARS} characters"
+        )
     try:
         normalised = _normalise(text)
         q = _REG.Quantity(1.0, normalised).to_base_units()
         zero = float(_REG.Quantity(0.0, normalised).to_base_units().magnitude)
     except Exception as exc:  # pint raises several unrelated types
         raise UnitError(
-            f"unknown unit '{text}' (examples of valid units: rad, deg, arcmin, deg/h, "
+            f"unknown unit {shorten(text)} (examples of valid units: rad, deg, arcmin, deg/h, "
             f"deg/sqrt(h), ug, ug/sqrt(Hz), m/s2, s, ms)"
         ) from exc
     dims = dict(q.dimensionality)
@@ -245,9 +272,11 @@ def conversion_factor(from_unit: str | Unit, to_unit: str | Unit) -> float:
     """
     a, b = resolve_unit(from_unit), resolve_unit(to_unit)
     if not a.compatible(b):
+        notes = [n for n in (name_disagreement(a), name_disagreement(b)) if n]
+        tail = f"; {'; '.join(notes)}" if notes else ""
         raise UnitError(
-            f"unit '{a.text}' cannot be converted to '{b.text}' "
-            f"(dimensions {a.si_text()} and {b.si_text()})"
+            f"unit '{a.text}'{_defined(a)} cannot be converted to '{b.text}'{_defined(b)} "
+            f"(dimensions {a.si_text()} and {b.si_text()}){tail}"
         )
     if a.offset or b.offset:
         if (a.factor, a.offset) == (b.factor, b.offset):
@@ -260,7 +289,57 @@ def conversion_factor(from_unit: str | Unit, to_unit: str | Unit) -> float:
     return a.factor / b.factor
 
 
-_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
+def _defined(u: Unit) -> str:
+    """`` (BaseUnit: 0.001 s)`` for an FMU's unit whose name does not say it, else nothing."""
+    if u.origin != "BaseUnit":
+        return ""
+    try:
+        said = not name_disagreement(u) and parse_unit(u.text) is not None
+    except UnitError:
+        said = False
+    return "" if said else f" (BaseUnit: {u.factor:.10g} {u.si_text()})"
+
+
+def name_disagreement(unit: Unit) -> str:
+    """What is wrong when an FMU's unit definition says something else than its name.
+
+    FMI makes the ``BaseUnit`` definition authoritative: the name is a label. A name that
+    reads as another unit (``deg/h`` defined with the factor of ``deg/s``, or
+    ``deg/sqrt(h)`` given integer exponents) is almost always a vendor's mistake, so it
+    is reported with both readings and the factor that is used.
+
+    Parameters
+    ----------
+    unit : Unit
+        A unit, normally from :func:`unit_from_fmi`.
+
+    Returns
+    -------
+    str
+        Empty when the unit is not an FMU definition, its name is no unit pint knows
+        (``degps``), or name and definition agree (factor to 1e-9, dimension, offset);
+        else one sentence.
+    """
+    if unit.origin != "BaseUnit":
+        return ""
+    try:
+        named = parse_unit(unit.text)
+    except UnitError:
+        return ""
+    if (
+        named.compatible(unit)
+        and math.isclose(named.factor, unit.factor, rel_tol=1e-9)
+        and math.isclose(named.offset, unit.offset, rel_tol=1e-9, abs_tol=1e-12)
+    ):
+        return ""
+    return (
+        f"unit '{unit.text}': its name reads {named.factor:.10g} {named.si_text()} but its "
+        f"BaseUnit defines {unit.factor:.10g} {unit.si_text()}; the definition is used "
+        f"(FMI: the definition wins over the name), factor {unit.factor:.10g} to SI"
+    )
+
+
+_NUMBER = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
 
 
 def to_unit(value: Any, unit: str | Unit) -> float | int | bool | list[float]:
@@ -294,16 +373,31 @@ def to_unit(value: Any, unit: str | Unit) -> float | int | bool | list[float]:
             )
         inner = value["value"]
         factor = conversion_factor(str(value["unit"]), unit)
+        items = inner if isinstance(inner, list) else [inner]
+        for x in items:
+            if isinstance(x, bool) or not isinstance(x, (int, float)):
+                raise UnitError(
+                    f"expected the 'value' of a {{value, unit}} table to be a number or a "
+                    f"flat list of numbers, got {shorten(inner)}"
+                )
         if isinstance(inner, list):
             return [float(x) * factor for x in inner]
         return float(inner) * factor
     if isinstance(value, list):
+        for v in value:
+            if isinstance(v, (list, dict)):
+                raise UnitError(
+                    f"expected a flat list of numbers or strings such as '1 deg', got a "
+                    f"nested {'list' if isinstance(v, list) else 'table'} {shorten(v)}"
+                )
         return [float(to_unit(v, unit)) for v in value]
     if isinstance(value, str):
-        m = _QUANTITY.match(value)
+        m = _NUMBER.match(value)
         if not m:
-            raise UnitError(f"expected a number with a unit such as '12.5 deg', got '{value}'")
-        number, written = float(m.group(1)), m.group(2)
+            raise UnitError(
+                f"expected a number with a unit such as '12.5 deg', got {shorten(value)}"
+            )
+        number, written = float(m.group(1)), value[m.end() :].strip()
         if not written:
             return number
         return number * conversion_factor(written, unit)

@@ -44,6 +44,8 @@ def variant(tmp_path: Path, name: str, imu_block: str) -> Path:
     assert n == 1
     # the vendor IMU has no bias truth outputs: record only what both IMUs have
     text = text.replace('"imu.accel_bias_b", "imu.gyro_bias_b", ', "")
+    # fixed biases in both: the campaign draws none (stratify needs the IMU's *_sigma)
+    text = re.sub(r"\nstratify = \[[^]]*\]", "", text)
     path = tmp_path / name
     path.write_text(text)
     return path

@@ -54,7 +54,10 @@ def test_incompatible_definitions_are_refused_with_both_units() -> None:
     with pytest.raises(UnitError, match=r"'g' cannot be converted to 'rad/s'.*m s\^-2.*rad s\^-1"):
         conversion_factor(G, "rad/s")
     # the angle exponent counts: deg/s is not 1/s
-    with pytest.raises(UnitError, match="'degps' cannot be converted to '1/s'"):
+    with pytest.raises(
+        UnitError,
+        match=r"'degps' \(BaseUnit: 0.01745329252 rad s\^-1\) cannot be converted to '1/s'",
+    ):
         conversion_factor(DEGPS, "1/s")
 
 
@@ -168,3 +171,30 @@ def test_incompatible_parameter_names_variable_and_both_units(
     msg = str(err.value)
     assert "key 'blocks.imu.parameters.gyro_bias_y'" in msg
     assert "'m/s' cannot be converted to 'deg/h'" in msg and "'imu.gyro_bias_y'" in msg
+
+
+def test_a_name_that_disagrees_with_its_definition_is_reported_with_both() -> None:
+    from cosim.units import name_disagreement
+
+    # a vendor's deg/sqrt(h) given integer exponents (rad/s) by mistake
+    wrong = unit_from_fmi("deg/sqrt(h)", {"rad": 1, "s": -1}, 2.9e-4)
+    note = name_disagreement(wrong)
+    assert "its name reads 0.0002908882087 rad s^-0.5" in note
+    assert "BaseUnit defines 0.00029 rad s^-1; the definition is used" in note
+    assert "factor 0.00029 to SI" in note
+    with pytest.raises(UnitError) as info:
+        conversion_factor("0.5 deg/sqrt(h)".split()[1], wrong)
+    message = info.value.message
+    assert "cannot be converted to 'deg/sqrt(h)' (BaseUnit: 0.00029 rad s^-1)" in message
+    assert "its name reads" in message
+    # a name pint does not know, or one that agrees, is no disagreement
+    assert (
+        name_disagreement(unit_from_fmi("degps", {"rad": 1, "s": -1}, 0.017453292519943295)) == ""
+    )
+    assert (
+        name_disagreement(unit_from_fmi("deg/s", {"rad": 1, "s": -1}, 0.017453292519943295)) == ""
+    )
+    # deg/h defined with the factor of deg/s: converts, with the definition's factor
+    fast = unit_from_fmi("deg/h", {"rad": 1, "s": -1}, 0.017453292519943295)
+    assert "its name reads 4.848136811e-06 rad s^-1" in name_disagreement(fast)
+    assert conversion_factor(fast, "rad/s") == 0.017453292519943295

@@ -162,10 +162,12 @@ parameters = {{ tau = "2 s", sigma = "{sigma}", seed = 5 }}
 [blocks.ours]
 model = "StrapdownImu"
 parameters = {{ {ours} }}
+unconnected_ok = ["dtheta_b", "dv_b"]   # only dtheta_b[1], [3] are driven
 
 [blocks.vendor]
 fmu = "{fmu}"
 parameters = {{ {vendor} }}
+unconnected_ok = ["dtheta_b", "dv_b"]   # only dtheta_b[1], [3] are driven
 
 {rename}
 """

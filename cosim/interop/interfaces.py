@@ -18,6 +18,14 @@ lists the variables a block must expose to fill it::
     type = "Real"                      # default Real
     description = "..."
     aliases = ["true_dtheta", ...]     # words vendors use; only for suggesting a rename map
+    form = "increments"                # optional: one of the role's alternative input forms
+
+*Forms*: vendors deliver the same sensor in different shapes (an IMU that takes true
+increments, or true rates and specific force). Variables with a ``form`` belong to one
+alternative; the role is filled when every required variable without a form and every
+required variable of *one* form is filled (:attr:`RoleMatch.form` says which). The
+variables of the other forms are then optional. The scenario wires the chosen form's
+inputs (``ins-cosim check-fmu --scenario`` prints the connection lines).
 
 :func:`match_role` compares a block's variables with a spec: each role scalar is found
 under its own name (possibly after a rename map), or a candidate is *suggested*: FMU
@@ -63,6 +71,7 @@ _VARIABLE_KEYS = {
     "type",
     "description",
     "aliases",
+    "form",
 }
 # Words that say where a vector lives rather than what it is (frame suffixes).
 _FRAME_WORDS = {"b", "n", "p", "s", "e", "i"}
@@ -94,6 +103,8 @@ class RoleVariable:
         What it is, with frame and direction.
     aliases : tuple of str
         Names vendors commonly use (only for suggestions).
+    form : str
+        The alternative input form the variable belongs to (empty: every form).
     """
 
     name: str
@@ -104,6 +115,7 @@ class RoleVariable:
     type: str = "Real"
     description: str = ""
     aliases: tuple[str, ...] = ()
+    form: str = ""
 
     def scalars(self) -> list[str]:
         """The scalar names: ``[name]`` or ``[name[1], ..., name[size]]``."""
@@ -135,6 +147,11 @@ class RoleSpec:
     models: tuple[str, ...]
     variables: tuple[RoleVariable, ...]
     path: Path
+
+    @property
+    def forms(self) -> list[str]:
+        """The alternative input forms, in file order (empty: the role has one shape)."""
+        return list(dict.fromkeys(v.form for v in self.variables if v.form))
 
 
 def available_roles() -> list[str]:
@@ -230,6 +247,9 @@ def _parse_spec(doc: dict[str, Any], path: Path) -> RoleSpec:
         aliases = v.get("aliases", [])
         if not isinstance(aliases, list) or not all(isinstance(a, str) for a in aliases):
             raise bad(f"{key}.aliases", "a list of strings", aliases)
+        form = v.get("form", "")
+        if not isinstance(form, str) or (form and not re.fullmatch(r"[A-Za-z_]\w*", form)):
+            raise bad(f"{key}.form", "a form name such as 'rates'", form)
         variables.append(
             RoleVariable(
                 name=name,
@@ -240,6 +260,7 @@ def _parse_spec(doc: dict[str, Any], path: Path) -> RoleSpec:
                 type=vtype,
                 description=str(v.get("description", "")),
                 aliases=tuple(aliases),
+                form=form,
             )
         )
     return RoleSpec(
@@ -315,9 +336,41 @@ class RoleMatch:
         return out
 
     @property
+    def form(self) -> str:
+        """The input form the block fills (empty when the role has no forms).
+
+        The first form (in spec order) whose required scalars are all filled without
+        problems; when none is, the form with the most of them filled (ties: the first).
+        """
+        forms = self.role.forms
+        if not forms:
+            return ""
+
+        def filled(form: str) -> tuple[bool, int]:
+            mine = [e for e in self.entries if e.variable.form == form and e.variable.required]
+            return all(e.ok for e in mine), sum(e.ok for e in mine)
+
+        return max(forms, key=lambda f: (filled(f), -forms.index(f)))
+
+    def required(self, entry: Entry) -> bool:
+        """Whether an entry must be filled: a required variable of no form or of :attr:`form`.
+
+        Parameters
+        ----------
+        entry : Entry
+            One of :attr:`entries`.
+
+        Returns
+        -------
+        bool
+        """
+        v = entry.variable
+        return v.required and (not v.form or v.form == self.form)
+
+    @property
     def problems(self) -> list[str]:
         """Problems of required scalars (missing, wrong causality, type or unit)."""
-        return [msg for e in self.entries if e.variable.required for msg in _messages(e)]
+        return [msg for e in self.entries if self.required(e) for msg in _messages(e, True)]
 
     @property
     def warnings(self) -> list[str]:
@@ -325,8 +378,8 @@ class RoleMatch:
         return [
             msg
             for e in self.entries
-            if not e.variable.required and e.fmu is not None
-            for msg in _messages(e)
+            if not self.required(e) and e.fmu is not None
+            for msg in _messages(e, False)
         ]
 
     @property
@@ -340,9 +393,9 @@ class RoleMatch:
         return bool(self.rename)
 
 
-def _messages(e: Entry) -> list[str]:
+def _messages(e: Entry, required: bool) -> list[str]:
     if e.fmu is None:
-        kind = "required" if e.variable.required else "optional"
+        kind = "required" if required else "optional"
         return [
             f"{e.role_name}: missing ({kind} {e.variable.causality}, {e.variable.unit}): "
             f"the FMU has no variable for it"
@@ -450,8 +503,24 @@ def _same_word(a: str, b: str) -> bool:
     return len(short) >= 3 and long_.startswith(short)
 
 
-def _name_score(rv: RoleVariable, base: str) -> float:
-    """Word overlap (Jaccard) of a group's base name with the role name or an alias."""
+def name_score(rv: RoleVariable, base: str) -> float:
+    """Word overlap (Jaccard) of a name with the role variable's name or an alias.
+
+    Words are split at ``_``, digits and camelCase; frame suffixes (``b``, ``n``, ...) are
+    dropped; a prefix of 3 letters or more matches the longer word (``vel``, ``velocity``).
+
+    Parameters
+    ----------
+    rv : RoleVariable
+        The role variable.
+    base : str
+        A variable's name without its axis suffix (``AngRate``, ``omega_is_s``).
+
+    Returns
+    -------
+    float
+        In [0, 1]; 0 when no word is shared.
+    """
     theirs = _words(base)
     best = 0.0
     for candidate in (rv.name, *rv.aliases):
@@ -494,12 +563,15 @@ def _score(rv: RoleVariable, group: Mapping[int | None, Variable], base: str) ->
         except UnitError:
             pass
     unit = units / n
-    name = _name_score(rv, base)
+    name = name_score(rv, base)
     complete = causality == 1.0 and unit == 1.0 and vtype == 1.0
     # a candidate needs a word in common with the role's names; required variables may
     # take a group with problems (to report them), optional ones only a fitting group
     # (so that, e.g., vendor bias parameters are not proposed as truth outputs)
-    if not ((complete and name > 0.0) or (rv.required and name >= 0.5)):
+    # (a variable of an input form is an alternative: it takes a group with problems only
+    # when most of the group has its causality)
+    loose = rv.required and name >= 0.5 and (not rv.form or causality >= 0.5)
+    if not ((complete and name > 0.0) or loose):
         return None
     return 3 * causality + 3 * unit + 2 * name + coverage + vtype
 
@@ -517,7 +589,8 @@ def _assign(
             s = _score(rv, group, base)
             if s is not None:
                 tie = difflib.SequenceMatcher(None, rv.name, base).ratio()
-                scored.append((not rv.required, -s, -tie, rv.name, key))
+                rank = 0 if rv.required and not rv.form else 1 if rv.required else 2
+                scored.append((rank, -s, -tie, rv.name, key))
     scored.sort()
     chosen: list[tuple[RoleVariable, dict[int | None, Variable]]] = []
     done_vars: set[str] = set()
@@ -530,3 +603,80 @@ def _assign(
         done_groups.add(key)
         chosen.append((by_name[rv_name], groups[key]))
     return chosen
+
+
+# ------------------------------------------------------------- scenario checks
+def block_role(kind: str, source: str, role: str = "") -> str:
+    """The role a scenario block fills: its ``role`` key, else the role listing its model.
+
+    Parameters
+    ----------
+    kind : str
+        ``"model"``, ``"fmu"`` or ``"class"`` (:class:`cosim.scenario.BlockSpec`).
+    source : str
+        The model name, FMU path or class.
+    role : str
+        The block's ``role`` key (empty when not stated).
+
+    Returns
+    -------
+    str
+        A role name, or empty when the block fills no known role.
+    """
+    if role:
+        return role
+    if kind != "model":
+        return ""
+    return next((r for r in available_roles() if source in load_role(r).models), "")
+
+
+def check_role_inputs(scenario: Any, system: Any, unconnected: Mapping[str, Any]) -> None:
+    """Refuse a required input of a block's role that is left on its start value.
+
+    An unconnected input of a role the block fills is almost always a forgotten
+    connection (an IMU with no true increments measures a body at rest): ``check`` and
+    ``run`` stop with the block, the inputs and how to find the connection lines, unless
+    the block states them in ``unconnected_ok``.
+
+    Parameters
+    ----------
+    scenario : cosim.scenario.Scenario
+        The loaded scenario (block specs, file).
+    system : cosim.master.System
+        Its built system (hosts with their variables, after rename maps).
+    unconnected : mapping
+        Block -> {input: start value} of the inputs left on their start values (the
+        ``unconnected`` entry of the build metadata).
+
+    Raises
+    ------
+    ScenarioError
+        For the first block with such inputs, keyed ``blocks.<name>``.
+    InterfaceError
+        A ``role`` key that names no role spec.
+    """
+    for name, spec in scenario.blocks.items():
+        left = unconnected.get(name) or {}
+        role = block_role(spec.kind, spec.source, spec.role)
+        if not left or not role:
+            continue
+        match = match_role(system.blocks[name].variables, load_role(role), suggest=False)
+        stated = set(spec.unconnected_ok)
+        missing = [
+            e.role_name
+            for e in match.entries
+            if match.required(e)
+            and e.variable.causality == "input"
+            and e.role_name in left
+            and e.role_name not in stated
+            and e.variable.name not in stated
+        ]
+        if missing:
+            where = spec.source if spec.kind == "fmu" else "FMU"
+            raise scenario.error(
+                f"block '{name}' fills role '{role}', but its required input(s) "
+                f"{', '.join(missing)} are not connected (they would run on their start "
+                f"values); connect them: `ins-cosim check-fmu {where} --role {role} "
+                f"--scenario {scenario.path} --block {name}` prints the connection lines",
+                key=f"blocks.{name}",
+            )
