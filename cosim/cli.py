@@ -1,4 +1,5 @@
-"""Command line: ``ins-cosim run | check | fmus | verify | check-fmu | export-ssp | reproduce``.
+"""Command line: ``ins-cosim run | check | fmus | verify | characterize | place | check-fmu
+| export-ssp | reproduce``.
 
 A user's mistake (bad scenario, missing FMU, failing block, bad option) prints one
 message naming the file, key, block or variable, and exits non-zero without a traceback:
@@ -329,6 +330,78 @@ def check_fmu(
         except UserError as exc:
             _fail(exc)
     sys.exit(0 if report.satisfied else 1)
+
+
+@main.command()
+@click.argument("log", type=click.Path(path_type=Path))
+@click.option(
+    "--out",
+    "out",
+    type=click.Path(path_type=Path),
+    required=True,
+    help="Folder for allan.csv, allan.png, characterization.json and imu_parameters.toml.",
+)
+@click.option(
+    "--sample-rate", type=float, default=None, help="Log rate [Hz] (default: timestamps)."
+)
+@click.option("--jitter", type=float, default=0.05, show_default=True, help="Timestamp tolerance.")
+@click.option("--drop-duplicates", is_flag=True, help="Drop rows repeating the previous row.")
+@click.option("--bootstrap", type=int, default=100, show_default=True, help="Bootstrap records.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Bootstrap seed.")
+def characterize(
+    log: Path,
+    out: Path,
+    sample_rate: float | None,
+    jitter: float,
+    drop_duplicates: bool,
+    bootstrap: int,
+    seed: int,
+) -> None:
+    """Allan analysis of a static IMU LOG: noise terms, plot, StrapdownImu parameters."""
+    from cosim.sensors.report import characterize_log, write_outputs
+
+    try:
+        result = characterize_log(
+            log,
+            sample_rate=sample_rate,
+            jitter=jitter,
+            duplicates="drop" if drop_duplicates else "error",
+            boot=bootstrap,
+            seed=seed,
+        )
+    except UserError as exc:
+        _fail(exc)
+    paths = write_outputs(result, out)
+    click.echo(paths["toml"].read_text().rstrip())
+    click.echo(f"wrote {paths['png']}, {paths['csv']}, {paths['json']} and {paths['toml']}")
+
+
+@main.command()
+@click.argument("real_report", type=click.Path(path_type=Path))
+@click.argument("campaign_report", type=click.Path(path_type=Path))
+@click.option(
+    "--out",
+    "out",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Folder for placement.md and placement.json (default: REAL_REPORT).",
+)
+def place(real_report: Path, campaign_report: Path, out: Path | None) -> None:
+    """Place the real run of REAL_REPORT in CAMPAIGN_REPORT: its percentile per requirement.
+
+    Both are `verify --report` folders with the same requirements. A real run outside the
+    simulated distribution is stated as a finding; the exit code is 0 (3: bad input).
+    """
+    from cosim.sensors.placement import format_placement, place, read_report, write_placement
+
+    try:
+        placements = place(read_report(real_report), read_report(campaign_report))
+    except UserError as exc:
+        _fail(exc)
+    text = format_placement(placements, str(real_report), str(campaign_report))
+    paths = write_placement(placements, out or real_report, str(real_report), str(campaign_report))
+    click.echo(text.rstrip())
+    click.echo(f"wrote {paths['md']} and {paths['json']}")
 
 
 @main.command("export-ssp")
