@@ -290,9 +290,11 @@ def test_every_alignment_filter_is_registered_under_its_class_name() -> None:
         for name, regs in registry.entry_points().items()
         if any("'ins-cosim " in r.distribution for r in regs)
     }
-    from cosim.sensors.replay import ImuLogReplay  # the log replay (issue 17) fills the imu role
+    from cosim.sensors.master_replay import MasterInsLogReplay  # the log replays (issue 17)
+    from cosim.sensors.replay import ImuLogReplay
 
     blocks["ImuLogReplay"] = ImuLogReplay
+    blocks["MasterInsLogReplay"] = MasterInsLogReplay
     assert set(ours) == set(blocks)
     for name, cls in blocks.items():
         assert registry.find_block(name) is cls

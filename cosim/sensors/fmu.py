@@ -84,8 +84,7 @@ def build_replay_fmu(
         for chunk in reader.chunks():
             lo, hi = chunk.first, chunk.first + len(chunk.time)
             times[lo:hi] = chunk.time
-            inc[lo:hi, :3] = chunk.dtheta
-            inc[lo:hi, 3:] = chunk.dv
+            inc[lo:hi] = chunk.values
         times.flush()
         inc.flush()
         del times, inc

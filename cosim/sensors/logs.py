@@ -78,15 +78,65 @@ JITTER = 0.05
 GAP_FACTOR = 1.5
 
 AXES = ("x", "y", "z")
-#: Accepted column names per sensor triad (first: the canonical name).
-PREFIXES = {"gyro": ("gyro",), "acc": ("acc", "accel")}
 _HEADER = re.compile(r"^\s*([^\[\]]+?)\s*(?:\[([^\[\]]*)\])?\s*$")
 
-#: Dimensions, in the order of :attr:`cosim.units.Unit.dimension`, of each kind of column.
-_KINDS = {
-    "gyro": {"increment": "rad", "rate": "rad/s"},
-    "acc": {"increment": "m/s", "rate": "m/s2"},
-}
+
+@dataclass(frozen=True)
+class Layout:
+    """The columns a kind of log holds besides ``time``, and what their units may be.
+
+    Attributes
+    ----------
+    name : str
+        The kind of log, for messages (``"IMU"``).
+    columns : tuple of str
+        Canonical column names, in output order.
+    kinds : tuple of dict
+        Per column: kind (``"increment"``, ``"rate"``, ``"state"``) -> SI reference unit;
+        a ``"rate"`` column is integrated into an increment.
+    aliases : dict
+        Column prefix -> other accepted prefixes (``{"acc": ("accel",)}``).
+    groups : tuple
+        ``(name, start, stop)``: columns that must share one kind (a sensor triad).
+    example : str
+        A header for the messages (``"gyro_x [deg/s]"``).
+    hint : str
+        How to choose units, for the wrong-kind message.
+    """
+
+    name: str
+    columns: tuple[str, ...]
+    kinds: tuple[dict[str, str], ...]
+    aliases: dict[str, tuple[str, ...]]
+    groups: tuple[tuple[str, int, int], ...]
+    example: str
+    hint: str
+
+
+_GYRO = {"increment": "rad", "rate": "rad/s"}
+_ACC = {"increment": "m/s", "rate": "m/s2"}
+#: An IMU log: gyro and accelerometer triads, increments or rates.
+IMU = Layout(
+    "IMU",
+    tuple(f"{p}_{a}" for p in ("gyro", "acc") for a in AXES),
+    (_GYRO,) * 3 + (_ACC,) * 3,
+    {"acc": ("accel",)},
+    (("gyro", 0, 3), ("acc", 3, 6)),
+    "gyro_x [deg/s]",
+    "give gyro columns an angle or angular-rate unit and acc columns a velocity or "
+    "acceleration unit",
+)
+#: A master-INS log: its navigation solution at each sample time (NED, ZYX roll-pitch-yaw).
+MASTER_INS = Layout(
+    "master INS",
+    ("v_n", "v_e", "v_d", "roll", "pitch", "yaw", "lat", "lon", "h"),
+    ({"state": "m/s"},) * 3 + ({"state": "rad"},) * 5 + ({"state": "m"},),
+    {},
+    (),
+    "yaw [deg]",
+    "give velocities a speed unit (m/s), attitude and position angles an angle unit (deg, "
+    "rad) and h a length unit (m)",
+)
 
 
 class LogError(UserError, ValueError):
@@ -135,15 +185,18 @@ class Columns:
     Attributes
     ----------
     index : tuple of int
-        Column positions of time, gyro x y z, acc x y z in the file (7 entries).
+        Column positions of time and the layout's columns in the file (IMU: time, gyro x
+        y z, acc x y z).
     names : tuple of str
         Their headers as written.
     time_factor : float
         Time unit -> s.
-    factor : ndarray, shape (6,)
-        Sensor unit -> SI (rad, rad/s, m/s or m/s2).
-    rate : ndarray of bool, shape (6,)
+    factor : ndarray, shape (k,)
+        Column unit -> SI (rad, rad/s, m/s or m/s2; m for a height).
+    rate : ndarray of bool, shape (k,)
         True where the column is a rate (mean over the interval), False for increments.
+    kinds : tuple of str
+        The kind of each sensor column (``"increment"``, ``"rate"``, ``"state"``).
     """
 
     index: tuple[int, ...]
@@ -151,11 +204,12 @@ class Columns:
     time_factor: float
     factor: np.ndarray
     rate: np.ndarray
+    kinds: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
 class Chunk:
-    """Checked samples, in SI increments.
+    """Checked samples, in SI units (rates integrated into increments).
 
     Attributes
     ----------
@@ -165,17 +219,25 @@ class Chunk:
         Line (CSV) or row (Parquet, HDF5) of each sample, for messages.
     time : ndarray, shape (n,)
         Sample times [s].
-    dtheta : ndarray, shape (n, 3)
-        Angle increments over each sample interval, body axes [rad].
-    dv : ndarray, shape (n, 3)
-        Velocity increments (integral of the specific force), body axes [m/s].
+    values : ndarray, shape (n, k)
+        The layout's columns in order, SI. IMU: angle increments [rad] then velocity
+        increments [m/s] over each sample interval, body axes.
     """
 
     first: int
     line: np.ndarray
     time: np.ndarray
-    dtheta: np.ndarray
-    dv: np.ndarray
+    values: np.ndarray
+
+    @property
+    def dtheta(self) -> np.ndarray:
+        """IMU: angle increments, shape (n, 3) [rad]."""
+        return self.values[:, :3]
+
+    @property
+    def dv(self) -> np.ndarray:
+        """IMU: velocity increments, shape (n, 3) [m/s]."""
+        return self.values[:, 3:6]
 
 
 @dataclass(frozen=True)
@@ -192,8 +254,9 @@ class LogSummary:
         Nominal sample interval [s].
     dropped : int
         Duplicate rows dropped by ``duplicates = "drop"``.
-    dtheta_sum, dv_sum : ndarray, shape (3,)
-        Sum of all increments [rad], [m/s] (:func:`math.fsum`, correctly rounded).
+    sums : ndarray, shape (k,)
+        Sum of each column over the log (:func:`math.fsum` per chunk); for an IMU log the
+        total angle [rad] and velocity [m/s] increments.
     """
 
     samples: int
@@ -201,12 +264,23 @@ class LogSummary:
     t_last: float
     dt: float
     dropped: int
-    dtheta_sum: np.ndarray
-    dv_sum: np.ndarray
+    sums: np.ndarray
+
+    @property
+    def dtheta_sum(self) -> np.ndarray:
+        """IMU: total angle increment, shape (3,) [rad]."""
+        return self.sums[:3]
+
+    @property
+    def dv_sum(self) -> np.ndarray:
+        """IMU: total velocity increment, shape (3,) [m/s]."""
+        return self.sums[3:6]
 
 
-def parse_header(names: list[str], file: str, where: str = "line 1") -> Columns:
-    """Find the time and sensor columns in a list of ``"name [unit]"`` headers.
+def parse_header(
+    names: list[str], file: str, where: str = "line 1", layout: Layout = IMU
+) -> Columns:
+    """Find the time and the layout's columns in a list of ``"name [unit]"`` headers.
 
     Parameters
     ----------
@@ -216,6 +290,8 @@ def parse_header(names: list[str], file: str, where: str = "line 1") -> Columns:
         The log, for messages.
     where : str, optional
         Where the headers are (``"line 1"``).
+    layout : Layout, optional
+        The columns wanted (default :data:`IMU`).
 
     Returns
     -------
@@ -231,29 +307,28 @@ def parse_header(names: list[str], file: str, where: str = "line 1") -> Columns:
         m = _HEADER.match(str(raw))
         if m:
             parsed.setdefault(m.group(1).strip().lower(), (i, str(raw).strip(), m.group(2)))
-    wanted = ["time"] + [f"{p}_{a}" for p in PREFIXES for a in AXES]
     index, shown, units = [], [], []
-    for key in wanted:
-        prefix, _, axis = key.partition("_")
-        spellings = [key] if key == "time" else [f"{p}_{axis}" for p in PREFIXES[prefix]]
+    for key in ("time", *layout.columns):
+        prefix, sep, rest = key.partition("_")
+        spellings = [key] + [f"{a}{sep}{rest}" for a in layout.aliases.get(prefix, ())]
         found = next((parsed[s] for s in spellings if s in parsed), None)
         if found is None:
             tip = did_you_mean(key, parsed)
             raise LogColumnError(
                 file,
                 f"no column '{key}' (columns found: {', '.join(map(str, names))}).{tip}",
-                "name the columns time, gyro_x, gyro_y, gyro_z, acc_x, acc_y, acc_z, each "
-                "with its unit, e.g. 'gyro_x [deg/s]'",
+                f"name the columns time, {', '.join(layout.columns)}, each with its unit, "
+                f"e.g. '{layout.example}'",
                 where,
             )
         i, text, unit = found
         if unit is None or not unit.strip():
+            refs = ["s"] if key == "time" else list(layout.kinds[len(index) - 1].values())
+            examples = " or ".join(f"'{text} [{r}]'" for r in refs)
             raise LogColumnError(
                 file,
                 f"column '{text}' has no unit",
-                f"write its unit in brackets, e.g. '{text} [s]'"
-                if key == "time"
-                else f"write its unit in brackets, e.g. '{text} [deg/s]' or '{text} [m/s2]'",
+                f"write its unit in brackets, e.g. {examples}",
                 where,
             )
         index.append(i)
@@ -269,10 +344,10 @@ def parse_header(names: list[str], file: str, where: str = "line 1") -> Columns:
         raise LogColumnError(
             file, f"column '{shown[0]}' has unit '{units[0]}', not a time", "use s, ms or us", where
         )
-    factor = np.empty(6)
-    rate = np.empty(6, dtype=bool)
+    k = len(layout.columns)
+    factor = np.empty(k)
+    kinds: list[str] = []
     for j, (text, unit) in enumerate(zip(shown[1:], units[1:], strict=True)):
-        triad = "gyro" if j < 3 else "acc"
         try:
             u = parse_unit(unit)
         except UnitError as exc:
@@ -282,31 +357,36 @@ def parse_header(names: list[str], file: str, where: str = "line 1") -> Columns:
                 "use a unit the unit system knows (README, 'Scenario files')",
                 where,
             ) from exc
-        kinds = _KINDS[triad]
-        for kind, ref in kinds.items():
+        allowed = layout.kinds[j]
+        for kind, ref in allowed.items():
             if u.compatible(parse_unit(ref)) and not u.offset:
                 factor[j] = u.factor / parse_unit(ref).factor
-                rate[j] = kind == "rate"
+                kinds.append(kind)
                 break
         else:
+            options = [
+                f"{'an' if kd[0] in 'aeiou' else 'a'} {kd} ({r})" for kd, r in allowed.items()
+            ]
+            what = " nor ".join(options)
             raise LogColumnError(
                 file,
-                f"column '{text}' has unit '{unit}' ({u.si_text()}), which is neither an "
-                f"increment ({kinds['increment']}) nor a rate ({kinds['rate']})",
-                "give gyro columns an angle or angular-rate unit and acc columns a velocity "
-                "or acceleration unit",
+                f"column '{text}' has unit '{unit}' ({u.si_text()}), which is "
+                f"{'neither ' if len(options) > 1 else 'not '}{what}",
+                layout.hint,
                 where,
             )
-    for lo, triad in ((0, "gyro"), (3, "acc")):
-        if len(set(rate[lo : lo + 3].tolist())) > 1:
+    for group, lo, hi in layout.groups:
+        if len(set(kinds[lo:hi])) > 1:
             raise LogColumnError(
                 file,
-                f"the {triad} columns mix rates and increments "
-                f"({', '.join(shown[1 + lo : 4 + lo])})",
+                f"the {group} columns mix "
+                f"{' and '.join(f'{kd}s' for kd in sorted(set(kinds[lo:hi]), reverse=True))} "
+                f"({', '.join(shown[1 + lo : 1 + hi])})",
                 "give the three axes of a triad the same kind of unit",
                 where,
             )
-    return Columns(tuple(index), tuple(shown), time_unit.factor, factor, rate)
+    rate = np.array([kd == "rate" for kd in kinds], dtype=bool)
+    return Columns(tuple(index), tuple(shown), time_unit.factor, factor, rate, tuple(kinds))
 
 
 # ----------------------------------------------------------------------------- raw sources
@@ -345,7 +425,7 @@ def _parse_csv(
     cols: Columns,
     last_chunk_end: bool,
 ) -> np.ndarray:
-    """Parse CSV text lines into a (n, 7) float array of the used columns, checked."""
+    """Parse CSV text lines into a (n, 1 + k) float array of the used columns, checked."""
     counts = [s.count(",") + 1 for s in block]
     for k, (count, text) in enumerate(zip(counts, block, strict=True)):
         complete = text.endswith("\n")
@@ -430,7 +510,7 @@ def _table_header(path: Path, fmt: str, group: str | None) -> list[str]:
 def _table_raw(
     path: Path, fmt: str, group: str | None, cols: Columns, names: list[str], chunk_rows: int
 ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-    """``(row numbers, (n, 7) values)`` chunks of a Parquet or HDF5 log."""
+    """``(row numbers, (n, 1 + k) values)`` chunks of a Parquet or HDF5 log."""
     used = [names[i] for i in cols.index]
     row = 1
     if fmt == "parquet":
@@ -438,7 +518,10 @@ def _table_raw(
         pf = pq.ParquetFile(path)
         for batch in pf.iter_batches(batch_size=chunk_rows, columns=used):
             data = np.column_stack(
-                [batch.column(i).to_numpy(zero_copy_only=False).astype(float) for i in range(7)]
+                [
+                    batch.column(i).to_numpy(zero_copy_only=False).astype(float)
+                    for i in range(len(used))
+                ]
             )
             yield np.arange(row, row + len(data)), data
             row += len(data)
@@ -476,13 +559,15 @@ def _import(module: str, dist: str) -> Any:
 
 
 # ----------------------------------------------------------------------------- the log
-class ImuLog:
-    """A recorded IMU log, read and checked chunk by chunk.
+class SensorLog:
+    """A recorded log of a :class:`Layout`, read and checked chunk by chunk.
 
     Parameters
     ----------
     path : str or Path
         ``.csv``, ``.parquet`` / ``.pq`` or ``.h5`` / ``.hdf5``.
+    layout : Layout
+        Its columns (:data:`IMU`, :data:`MASTER_INS`).
     sample_rate : float, optional
         Nominal sample rate [Hz]; default: from the median interval of the first chunk.
     jitter : float, optional
@@ -504,6 +589,7 @@ class ImuLog:
     def __init__(
         self,
         path: str | Path,
+        layout: Layout,
         *,
         sample_rate: float | None = None,
         jitter: float = JITTER,
@@ -514,7 +600,11 @@ class ImuLog:
         self.path = Path(path)
         self.file = str(path)
         if not self.path.is_file():
-            raise LogError(self.file, "no such file", "check the path (relative to the scenario)")
+            raise LogError(
+                self.file,
+                "no such file",
+                "check the path (a relative one is taken from the working directory)",
+            )
         suffix = self.path.suffix.lower()
         formats = {
             ".csv": "csv",
@@ -547,8 +637,9 @@ class ImuLog:
         else:
             names = _table_header(self.path, self.format, group)
         self.names = names
+        self.layout = layout
         self.columns = parse_header(
-            names, self.file, "line 1" if self.format == "csv" else "column names"
+            names, self.file, "line 1" if self.format == "csv" else "column names", layout
         )
 
     # --------------------------------------------------------------- raw values
@@ -642,7 +733,7 @@ class ImuLog:
                 k = int(np.argmax(wrong))
                 self._time_error(lines, t, k, float(before[k]), dt, float(grid[k]))
             inc = np.where(cols.rate, values * d[:, None], values)
-            yield Chunk(count, lines, t, inc[:, :3], inc[:, 3:])
+            yield Chunk(count, lines, t, inc)
             count += len(t)
             prev_t = float(t[-1])
             prev_row = values[-1:].copy()
@@ -714,16 +805,49 @@ class ImuLog:
         self._dropped = 0
         n = 0
         t_first = t_last = math.nan
-        sums: list[list[float]] = [[] for _ in range(6)]
+        sums = np.zeros(len(self.layout.columns))
         for chunk in self.chunks():
             if n == 0:
                 t_first = float(chunk.time[0])
             n += len(chunk.time)
             t_last = float(chunk.time[-1])
-            for j, col in enumerate(np.hstack([chunk.dtheta, chunk.dv]).T):
-                sums[j] = [math.fsum(sums[j] + [math.fsum(col)])]
-        total = np.array([s[0] for s in sums])
-        return LogSummary(n, t_first, t_last, self.dt, self._dropped, total[:3], total[3:])
+            sums = np.array(
+                [
+                    math.fsum([s, math.fsum(col)])
+                    for s, col in zip(sums, chunk.values.T, strict=True)
+                ]
+            )
+        return LogSummary(n, t_first, t_last, self.dt, self._dropped, sums)
+
+
+class ImuLog(SensorLog):
+    """An IMU log (:data:`IMU` layout); the parameters are :class:`SensorLog`'s but ``layout``.
+
+    Parameters
+    ----------
+    path : str or Path
+        The log.
+    **options
+        ``sample_rate``, ``jitter``, ``duplicates``, ``chunk_rows``, ``group``.
+    """
+
+    def __init__(self, path: str | Path, **options: Any) -> None:
+        super().__init__(path, IMU, **options)
+
+
+class MasterInsLog(SensorLog):
+    """A master-INS log (:data:`MASTER_INS` layout: states at each sample time).
+
+    Parameters
+    ----------
+    path : str or Path
+        The log.
+    **options
+        ``sample_rate``, ``jitter``, ``duplicates``, ``chunk_rows``, ``group``.
+    """
+
+    def __init__(self, path: str | Path, **options: Any) -> None:
+        super().__init__(path, MASTER_INS, **options)
 
 
 #: Header of the logs :func:`write_csv` writes (increments in SI units).

@@ -66,24 +66,21 @@ def _npy_chunks(folder: Path, chunk_rows: int) -> Iterator[tuple[np.ndarray, np.
         yield np.array(time[lo : lo + chunk_rows]), np.array(inc[lo : lo + chunk_rows])
 
 
-class ImuLogReplay(Block):
-    """Replay of a recorded IMU log: measured increments per macro step (role ``imu``)."""
+#: Parameters every log replay has.
+REPLAY_PARAMETERS = (
+    parameter("sample_rate", 0.0, "Hz", "log sample rate; 0: from its timestamps"),
+    parameter("jitter", 0.05, "1", "tolerance on timestamps off the grid, in intervals"),
+    parameter("drop_duplicates", False, description="drop rows repeating the previous row"),
+    parameter("chunk_rows", 65536, description="read buffer [rows]"),
+)
 
-    variables = (
-        parameter("sample_rate", 0.0, "Hz", "log sample rate; 0: from its timestamps"),
-        parameter("jitter", 0.05, "1", "tolerance on timestamps off the grid, in intervals"),
-        parameter("drop_duplicates", False, description="drop rows repeating the previous row"),
-        parameter("chunk_rows", 65536, description="read buffer [rows]"),
-        input_("dtheta_b", (0.0, 0.0, 0.0), "rad", "true angle increment (ignored: role input)"),
-        input_("dv_b", (0.0, 0.0, 0.0), "m/s", "true velocity increment (ignored: role input)"),
-        output("dtheta_meas_b", (0.0, 0.0, 0.0), "rad", "logged angle increment over the step"),
-        output("dv_meas_b", (0.0, 0.0, 0.0), "m/s", "logged velocity increment over the step"),
-        output("omega_meas_b", (0.0, 0.0, 0.0), "rad/s", "mean logged rate dtheta_meas_b / h"),
-        output("f_meas_b", (0.0, 0.0, 0.0), "m/s2", "mean logged specific force dv_meas_b / h"),
-        output("log_time", 0.0, "s", "log time of the last sample replayed"),
-    )
-    default_step = 0.01
-    default_stop = 1.0
+
+class LogReplay(Block):
+    """Common part of the log replays: the ``log`` parameter, the read buffer, the step check.
+
+    A subclass declares its variables (starting with :data:`REPLAY_PARAMETERS`), calls
+    :meth:`open_log` in :meth:`initialize` and takes its samples with :meth:`take`.
+    """
 
     def __init__(self, **kwargs: object) -> None:
         super().__init__(**kwargs)
@@ -100,49 +97,63 @@ class ImuLogReplay(Block):
             nested=False,
         )
 
-    # ------------------------------------------------------------ life cycle
-    def initialize(self) -> None:
+    def open_log(self, layout: str) -> None:
+        """Check the whole log (one streaming pass), then open it for :meth:`take`.
+
+        Parameters
+        ----------
+        layout : str
+            Name of a :mod:`cosim.sensors.logs` layout: ``"IMU"`` or ``"MASTER_INS"``.
+
+        Raises
+        ------
+        ReplayError
+            ``chunk_rows < 1`` or an empty ``log``.
+        LogError
+            The log fails a check (file, line, time and fix).
+        """
         rows = int(self.chunk_rows)
         if rows < 1:
             raise ReplayError(f"chunk_rows must be >= 1, got {rows}")
-        rate = float(self.sample_rate)
-        if self.log:
-            from cosim.sensors.logs import ImuLog
+        if not self.log:
+            raise ReplayError(f"{type(self).__name__}.log is empty: set it to the log file")
+        from cosim.sensors import logs
 
-            log = ImuLog(
-                self.log,
-                sample_rate=rate if rate > 0.0 else None,
-                jitter=float(self.jitter),
-                duplicates="drop" if self.drop_duplicates else "error",
-                chunk_rows=rows,
-            )
-            summary = log.scan()  # every check, before the first step
-            self._rate = log.sample_rate
-            self._samples = summary.samples
-            self._source = (
-                (c.time, np.hstack([c.dtheta, c.dv])) for c in log.chunks()
-            )  # fmt: skip
-            self._name = self.log
-        else:
-            folder = Path(self.resources or "") / RESOURCE_DIR
-            if not self.resources or not (folder / TIME_FILE).is_file():
-                raise ReplayError(
-                    "ImuLogReplay.log is empty: set it to the log file (in an FMU built by "
-                    "cosim.sensors.fmu.build_replay_fmu the log is in the resources)"
-                )
-            meta = np.load(folder / TIME_FILE, mmap_mode="r")
-            self._samples = len(meta)
-            stated = float(np.load(folder / "sample_rate.npy"))
-            self._rate = rate if rate > 0.0 else stated
-            self._source = _npy_chunks(folder, rows)
-            self._name = "the FMU's log"
-        self._buf = np.zeros((0, 6))
+        rate = float(self.sample_rate)
+        log = logs.SensorLog(
+            self.log,
+            getattr(logs, layout),
+            sample_rate=rate if rate > 0.0 else None,
+            jitter=float(self.jitter),
+            duplicates="drop" if self.drop_duplicates else "error",
+            chunk_rows=rows,
+        )
+        summary = log.scan()  # every check, before the first step
+        self.start_source(
+            log.sample_rate, summary.samples, ((c.time, c.values) for c in log.chunks()), self.log
+        )
+
+    def start_source(
+        self, rate: float, samples: int, source: Iterator[tuple[np.ndarray, np.ndarray]], name: str
+    ) -> None:
+        """Replay ``source`` from its first sample.
+
+        Parameters
+        ----------
+        rate : float
+            Sample rate [Hz].
+        samples : int
+            Samples in the source.
+        source : iterator of (ndarray (n,), ndarray (n, k))
+            Sample times [s] and values (SI), chunk by chunk.
+        name : str
+            The log, for messages.
+        """
+        self._rate, self._samples, self._source, self._name = rate, samples, source, name
+        self._buf: np.ndarray | None = None
         self._buf_t = np.zeros(0)
         self._used = 0
         self._m_for: tuple[float, int] | None = None
-        for name in ("dtheta_meas_b", "dv_meas_b", "omega_meas_b", "f_meas_b"):
-            setattr(self, name, np.zeros(3))
-        self.log_time = 0.0
 
     def samples_per_step(self, h: float) -> int:
         """Samples of the log in one macro step, checked.
@@ -179,8 +190,29 @@ class ImuLogReplay(Block):
         self._m_for = (h, m)
         return m
 
-    def _take(self, m: int, t: float, h: float) -> tuple[np.ndarray, float]:
-        while len(self._buf) < m:
+    def take(self, m: int, t: float, h: float) -> tuple[np.ndarray, float]:
+        """The next ``m`` samples.
+
+        Parameters
+        ----------
+        m : int
+            Samples.
+        t, h : float
+            The macro step asking [s], for the message when the log ends.
+
+        Returns
+        -------
+        values : ndarray, shape (m, k)
+            SI values (increments for an IMU log).
+        time : float
+            Log time of the last of them [s].
+
+        Raises
+        ------
+        ReplayError
+            The log ends before.
+        """
+        while self._buf is None or len(self._buf) < m:
             nxt = next(self._source, None)
             if nxt is None:
                 dt = 1.0 / self._rate
@@ -190,16 +222,52 @@ class ImuLogReplay(Block):
                     f"{t + h:.9g} s needs {self._used + m}: set master.stop <= "
                     f"{self._samples * dt:.9g} s"
                 )
-            self._buf = np.concatenate([self._buf, nxt[1]])
+            self._buf = nxt[1] if self._buf is None else np.concatenate([self._buf, nxt[1]])
             self._buf_t = np.concatenate([self._buf_t, nxt[0]])
         inc, self._buf = self._buf[:m], self._buf[m:]
         t_last, self._buf_t = float(self._buf_t[m - 1]), self._buf_t[m:]
         self._used += m
         return inc, t_last
 
+
+class ImuLogReplay(LogReplay):
+    """Replay of a recorded IMU log: measured increments per macro step (role ``imu``)."""
+
+    variables = (
+        *REPLAY_PARAMETERS,
+        input_("dtheta_b", (0.0, 0.0, 0.0), "rad", "true angle increment (ignored: role input)"),
+        input_("dv_b", (0.0, 0.0, 0.0), "m/s", "true velocity increment (ignored: role input)"),
+        output("dtheta_meas_b", (0.0, 0.0, 0.0), "rad", "logged angle increment over the step"),
+        output("dv_meas_b", (0.0, 0.0, 0.0), "m/s", "logged velocity increment over the step"),
+        output("omega_meas_b", (0.0, 0.0, 0.0), "rad/s", "mean logged rate dtheta_meas_b / h"),
+        output("f_meas_b", (0.0, 0.0, 0.0), "m/s2", "mean logged specific force dv_meas_b / h"),
+        output("log_time", 0.0, "s", "log time of the last sample replayed"),
+    )
+    default_step = 0.01
+    default_stop = 1.0
+
+    # ------------------------------------------------------------ life cycle
+    def initialize(self) -> None:
+        folder = Path(self.resources or "") / RESOURCE_DIR
+        if not self.log and self.resources and (folder / TIME_FILE).is_file():
+            rows = int(self.chunk_rows)
+            if rows < 1:
+                raise ReplayError(f"chunk_rows must be >= 1, got {rows}")
+            rate = float(self.sample_rate)
+            stated = float(np.load(folder / "sample_rate.npy"))
+            samples = len(np.load(folder / TIME_FILE, mmap_mode="r"))
+            self.start_source(
+                rate if rate > 0.0 else stated, samples, _npy_chunks(folder, rows), "the FMU's log"
+            )
+        else:
+            self.open_log("IMU")
+        for name in ("dtheta_meas_b", "dv_meas_b", "omega_meas_b", "f_meas_b"):
+            setattr(self, name, np.zeros(3))
+        self.log_time = 0.0
+
     def step(self, t: float, h: float) -> None:
         m = self.samples_per_step(h)
-        inc, self.log_time = self._take(m, t, h)
+        inc, self.log_time = self.take(m, t, h)
         if m == 1:
             total = inc[0].copy()
         else:

@@ -182,7 +182,7 @@ def characterize_log(
         The log fails a check.
     """
     log = ImuLog(path, sample_rate=sample_rate, jitter=jitter, duplicates=duplicates)
-    parts = [np.hstack([c.dtheta, c.dv]) for c in log.chunks()]  # the analysis needs it all
+    parts = [c.values for c in log.chunks()]  # the analysis needs it all
     inc = np.vstack(parts)
     dt = 1.0 / log.sample_rate
     rate = inc / dt
