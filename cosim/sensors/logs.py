@@ -30,9 +30,9 @@ column, named ``time``, ``gyro_x``, ...; each dataset's unit is its attribute ``
 
 Checks
 ------
-Every problem is one :class:`LogError` naming the file, the line (CSV, counting the header
-as line 1) or the row (Parquet, HDF5, counting the first data row as row 1), the sample's
-time, and the fix. Nothing is interpolated, filled or reordered:
+Every problem is one :class:`~cosim.sensors.formats.LogError` naming the file, the line
+(CSV, counting the header as line 1) or the row (Parquet, HDF5, counting the first data
+row as row 1), the sample's time, and the fix. Nothing is interpolated, filled or reordered:
 
 =====================  =========================================================================
 problem                rule
@@ -57,7 +57,6 @@ streaming pass.
 
 from __future__ import annotations
 
-import itertools
 import math
 import re
 from collections.abc import Iterator
@@ -68,6 +67,17 @@ from typing import Any
 import numpy as np
 
 from cosim.errors import UnitError, UserError, did_you_mean
+from cosim.sensors.formats import (
+    LogColumnError,
+    LogError,
+    LogTimeError,
+    LogValueError,
+    csv_header,
+    csv_lines,
+    parse_csv,
+    table_chunks,
+    table_header,
+)
 from cosim.units import parse_unit
 
 #: Default chunk size of the readers [rows].
@@ -137,45 +147,6 @@ MASTER_INS = Layout(
     "give velocities a speed unit (m/s), attitude and position angles an angle unit (deg, "
     "rad) and h a length unit (m)",
 )
-
-
-class LogError(UserError, ValueError):
-    """A log cannot be used as it is: one line with the file, where, the time and the fix.
-
-    Parameters
-    ----------
-    file : str
-        The log file.
-    message : str
-        What is wrong.
-    fix : str
-        How to repair it.
-    where : str, optional
-        ``"line 12"`` (CSV) or ``"row 12"`` (Parquet, HDF5).
-    time : float, optional
-        The sample's time [s].
-    """
-
-    def __init__(
-        self, file: str, message: str, fix: str, where: str | None = None, time: float | None = None
-    ) -> None:
-        self.file, self.where, self.time, self.fix = file, where, time, fix
-        place = ", ".join(
-            x for x in (file, where, None if time is None else f"t = {time:.9g} s") if x
-        )
-        super().__init__(f"{place}: {message}; {fix}")
-
-
-class LogColumnError(LogError):
-    """A required column is missing, or a column's unit is unknown or of the wrong kind."""
-
-
-class LogValueError(LogError):
-    """A value cannot be read (truncated line, text) or is NaN / infinite."""
-
-
-class LogTimeError(LogError):
-    """Timestamps: a duplicate, time going backwards, a gap, or jitter beyond the tolerance."""
 
 
 @dataclass(frozen=True)
@@ -389,175 +360,6 @@ def parse_header(
     return Columns(tuple(index), tuple(shown), time_unit.factor, factor, rate, tuple(kinds))
 
 
-# ----------------------------------------------------------------------------- raw sources
-def _csv_header(path: Path) -> list[str]:
-    """The header names of a CSV log (its first line)."""
-    with path.open("r", newline="") as handle:
-        header = handle.readline()
-    if not header.strip():
-        raise LogColumnError(
-            str(path),
-            "the file is empty or its first line is blank",
-            "write the header 'time [s],gyro_x [deg/s],...' on line 1",
-            "line 1",
-        )
-    return [h.strip() for h in header.rstrip("\r\n").split(",")]
-
-
-def _csv_lines(path: Path, chunk_rows: int) -> Iterator[tuple[np.ndarray, list[str]]]:
-    """``(line numbers, text lines)`` of a CSV log after its header, ``chunk_rows`` at a time."""
-    with path.open("r", newline="") as handle:
-        handle.readline()
-        line_no = 2
-        while True:
-            block = list(itertools.islice(handle, chunk_rows))
-            if not block:
-                return
-            yield np.arange(line_no, line_no + len(block)), block
-            line_no += len(block)
-
-
-def _parse_csv(
-    file: str,
-    lines: np.ndarray,
-    block: list[str],
-    n_fields: int,
-    cols: Columns,
-    last_chunk_end: bool,
-) -> np.ndarray:
-    """Parse CSV text lines into a (n, 1 + k) float array of the used columns, checked."""
-    counts = [s.count(",") + 1 for s in block]
-    for k, (count, text) in enumerate(zip(counts, block, strict=True)):
-        complete = text.endswith("\n")
-        if count != n_fields or not text.strip():
-            _bad_line(file, int(lines[k]), text, count, n_fields, truncated=not complete)
-    try:
-        data = np.loadtxt(block, delimiter=",", usecols=cols.index, ndmin=2, dtype=float)
-    except ValueError:
-        for k, text in enumerate(block):
-            fields = text.rstrip("\r\n").split(",")
-            for i, name in zip(cols.index, cols.names, strict=True):
-                try:
-                    float(fields[i])
-                except ValueError:
-                    _bad_line(
-                        file,
-                        int(lines[k]),
-                        text,
-                        len(fields),
-                        n_fields,
-                        truncated=not text.endswith("\n") and last_chunk_end,
-                        column=name,
-                        field=fields[i],
-                    )
-        raise  # pragma: no cover - loadtxt failed on a line every field of which parses
-    return data
-
-
-def _bad_line(
-    file: str,
-    line: int,
-    text: str,
-    count: int,
-    n_fields: int,
-    *,
-    truncated: bool,
-    column: str | None = None,
-    field: str | None = None,
-) -> None:
-    if truncated:
-        raise LogValueError(
-            file,
-            f"the last line is cut short ({count} of {n_fields} fields, no end of line): "
-            f"{text.strip()[:60]!r}",
-            "the log was still being written or the copy was interrupted: copy it again, "
-            f"or delete line {line}",
-            f"line {line}",
-        )
-    if column is not None:
-        raise LogValueError(
-            file,
-            f"column '{column}' holds {field.strip()!r}, not a number",
-            "write a number there (empty fields are not filled in)",
-            f"line {line}",
-        )
-    raise LogValueError(
-        file,
-        f"{count} fields where the header has {n_fields}" if text.strip() else "blank line",
-        "give every line one value per header column (delete blank lines)",
-        f"line {line}",
-    )
-
-
-def _table_header(path: Path, fmt: str, group: str | None) -> list[str]:
-    if fmt == "parquet":
-        pq = _import("pyarrow.parquet", "pyarrow")
-        return list(pq.ParquetFile(path).schema_arrow.names)
-    h5py = _import("h5py", "h5py")
-    with h5py.File(path, "r") as f:
-        g = f[group] if group else f
-        names = []
-        for key, ds in g.items():
-            if not isinstance(ds, h5py.Dataset) or ds.ndim != 1:
-                continue
-            unit = ds.attrs.get("unit")
-            if isinstance(unit, bytes):
-                unit = unit.decode()
-            names.append(f"{key} [{unit}]" if unit is not None and "[" not in key else key)
-        return names
-
-
-def _table_raw(
-    path: Path, fmt: str, group: str | None, cols: Columns, names: list[str], chunk_rows: int
-) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-    """``(row numbers, (n, 1 + k) values)`` chunks of a Parquet or HDF5 log."""
-    used = [names[i] for i in cols.index]
-    row = 1
-    if fmt == "parquet":
-        pq = _import("pyarrow.parquet", "pyarrow")
-        pf = pq.ParquetFile(path)
-        for batch in pf.iter_batches(batch_size=chunk_rows, columns=used):
-            data = np.column_stack(
-                [
-                    batch.column(i).to_numpy(zero_copy_only=False).astype(float)
-                    for i in range(len(used))
-                ]
-            )
-            yield np.arange(row, row + len(data)), data
-            row += len(data)
-        return
-    h5py = _import("h5py", "h5py")
-    with h5py.File(path, "r") as f:
-        g = f[group] if group else f
-        keys = [u.split("[")[0].strip() if u.split("[")[0].strip() in g else u for u in used]
-        sets = [g[k] for k in keys]
-        n = min(len(s) for s in sets)
-        if any(len(s) != n for s in sets):
-            lengths = ", ".join(f"{k}: {len(s)}" for k, s in zip(keys, sets, strict=True))
-            raise LogValueError(
-                str(path),
-                f"the datasets differ in length ({lengths})",
-                "write one value per sample in every dataset",
-                f"row {n + 1}",
-            )
-        for lo in range(0, n, chunk_rows):
-            hi = min(n, lo + chunk_rows)
-            data = np.column_stack([np.asarray(s[lo:hi], dtype=float) for s in sets])
-            yield np.arange(lo + 1, hi + 1), data
-
-
-def _import(module: str, dist: str) -> Any:
-    import importlib
-
-    try:
-        return importlib.import_module(module)
-    except ImportError as exc:
-        raise UserError(
-            f"reading this log needs {dist}, which is not installed: "
-            f"pip install 'ins-cosim[logs]' (or pip install {dist})"
-        ) from exc
-
-
 # ----------------------------------------------------------------------------- the log
 class SensorLog:
     """A recorded log of a :class:`Layout`, read and checked chunk by chunk.
@@ -633,9 +435,9 @@ class SensorLog:
         self.group = group
         self.where = "line" if self.format == "csv" else "row"
         if self.format == "csv":
-            names = _csv_header(self.path)
+            names = csv_header(self.path)
         else:
-            names = _table_header(self.path, self.format, group)
+            names = table_header(self.path, self.format, group)
         self.names = names
         self.layout = layout
         self.columns = parse_header(
@@ -645,19 +447,30 @@ class SensorLog:
     # --------------------------------------------------------------- raw values
     def _raw(self) -> Iterator[tuple[np.ndarray, np.ndarray]]:
         if self.format != "csv":
-            yield from _table_raw(
-                self.path, self.format, self.group, self.columns, self.names, self.chunk_rows
+            yield from table_chunks(
+                self.path,
+                self.format,
+                self.group,
+                self.columns.index,
+                self.names,
+                self.chunk_rows,
             )
             return
-        raw = _csv_lines(self.path, self.chunk_rows)
+        raw = csv_lines(self.path, self.chunk_rows)
         pending = next(raw, None)
         while pending is not None:
             following = next(raw, None)
             lines, block = pending
             yield (
                 lines,
-                _parse_csv(
-                    self.file, lines, block, len(self.names), self.columns, following is None
+                parse_csv(
+                    self.file,
+                    lines,
+                    block,
+                    len(self.names),
+                    self.columns.index,
+                    self.columns.names,
+                    following is None,
                 ),
             )
             pending = following
