@@ -205,6 +205,24 @@ class BlockHost(abc.ABC):
             One value per reference, in each variable's declared unit.
         """
 
+    def get_values(self, vtype: str, vrs: list[int]) -> list[Any]:
+        """Current values of variables of one type (what the recorder reads).
+
+        Parameters
+        ----------
+        vtype : str
+            The :attr:`Variable.type` (``"Real"``, ``"Integer"``, ``"Boolean"``,
+            ``"String"``, ``"Enumeration"``, or an FMI 3 type such as ``"UInt8"``).
+        vrs : list of int
+            Value references.
+
+        Returns
+        -------
+        list
+            One value per reference (float, int, bool or str).
+        """
+        return list(self._getters[vtype](vrs))
+
     @abc.abstractmethod
     def reset(self) -> None:
         """Return to the state after instantiation (FMI reset)."""
@@ -233,6 +251,26 @@ class BlockCallError(Exception):
     def __init__(self, call: str, message: str) -> None:
         self.call = call
         super().__init__(message)
+
+
+class BlockTerminated(BlockCallError):  # noqa: N818  (a request, not an error)
+    """A block asked to end the simulation (FMI 2 ``fmi2Discard`` with ``fmi2Terminated``,
+    FMI 3 ``terminateSimulation``): not a failure; the run ends cleanly at :attr:`time`.
+
+    Parameters
+    ----------
+    call : str
+        The FMI call that returned the request (``"fmi2DoStep"``, ``"fmi3DoStep"``).
+    message : str
+        What the block said (its last log message, if any).
+    time : float
+        The last time the block's outputs are valid at [s] (FMI 2
+        ``fmi2LastSuccessfulTime``; FMI 3 the step end, or the early-return time).
+    """
+
+    def __init__(self, call: str, message: str, time: float) -> None:
+        self.time = time
+        super().__init__(call, message)
 
 
 class InProcessHost(BlockHost):
@@ -279,6 +317,12 @@ class InProcessHost(BlockHost):
             "Integer": inst.set_integer,
             "Boolean": inst.set_boolean,
             "String": inst.set_string,
+        }
+        self._getters = {
+            "Real": inst.get_real,
+            "Integer": inst.get_integer,
+            "Boolean": inst.get_boolean,
+            "String": inst.get_string,
         }
 
     def setup(self, start_time: float, parameters: dict[str, Any]) -> None:
@@ -397,6 +441,17 @@ def apply_rename(
 
 #: FMI 3 types that the host maps onto the FMI 2 type names the rest of ins-cosim uses.
 _FMI3_TYPES = {"Float64": "Real", "Int32": "Integer"}
+#: The other FMI 3 numeric types, kept under their own names (integer ranges by name).
+FMI3_NUMERIC_TYPES = (
+    "Float32",
+    "Int8",
+    "UInt8",
+    "Int16",
+    "UInt16",
+    "UInt32",
+    "Int64",
+    "UInt64",
+)
 
 
 def fmu_units(md: Any) -> dict[str, Unit | None]:
@@ -533,6 +588,7 @@ class FmuHost(BlockHost):
                 f"block '{name}': FMU '{path}' is FMI {md.fmiVersion}; expected FMI 2.0 or 3.0"
             )
         self.model_description = md
+        self._pythonfmu = (md.generationTool or "").lower().startswith("pythonfmu")
         self.fmi_version = md.fmiVersion
         self.guid = md.guid
         self.sha256 = file_sha256(path)
@@ -604,12 +660,19 @@ class FmuHost(BlockHost):
                 addLoggerProxy(ctypes.byref(cb))
             self._callbacks = cb
             fmu.instantiate(callbacks=cb, loggingOn=True)
-            self._get = {"Real": fmu.getReal, "Integer": fmu.getInteger, "Boolean": fmu.getBoolean}
+            self._get = {
+                "Real": fmu.getReal,
+                "Integer": fmu.getInteger,
+                "Boolean": fmu.getBoolean,
+                "String": fmu.getString,
+                "Enumeration": fmu.getInteger,
+            }
             self._set = {
                 "Real": fmu.setReal,
                 "Integer": fmu.setInteger,
                 "Boolean": fmu.setBoolean,
                 "String": fmu.setString,
+                "Enumeration": fmu.setInteger,
             }
         else:
             from fmpy.fmi3 import FMU3Slave
@@ -626,25 +689,23 @@ class FmuHost(BlockHost):
                 "Real": fmu.getFloat64,
                 "Integer": fmu.getInt32,
                 "Boolean": fmu.getBoolean,
+                "String": fmu.getString,
+                "Enumeration": fmu.getInt64,
+                "Binary": fmu.getBinary,
             }
             self._set = {
                 "Real": fmu.setFloat64,
                 "Integer": fmu.setInt32,
                 "Boolean": fmu.setBoolean,
                 "String": fmu.setString,
+                "Enumeration": fmu.setInt64,
+                "Binary": fmu.setBinary,
             }
-            # parameters of the other FMI 3 types keep their type names (fmu_variables)
-            for vtype in (
-                "Float32",
-                "Int8",
-                "UInt8",
-                "Int16",
-                "UInt16",
-                "UInt32",
-                "Int64",
-                "UInt64",
-            ):
+            # the other FMI 3 types keep their type names (fmu_variables)
+            for vtype in FMI3_NUMERIC_TYPES:
                 self._set[vtype] = getattr(fmu, f"set{vtype}")
+                self._get[vtype] = getattr(fmu, f"get{vtype}")
+        self._getters = self._get
         self.fmu = fmu
         self._state = "instantiated"
 
@@ -673,18 +734,48 @@ class FmuHost(BlockHost):
         self._state = "initialization"
 
     def exit_init(self) -> None:
-        self._call("exitInitializationMode", self.fmu.exitInitializationMode)
+        prefix = "fmi2" if self.fmi_version == "2.0" else "fmi3"
+        self._call(f"{prefix}ExitInitializationMode", self.fmu.exitInitializationMode)
         # FMI 3 co-simulation without event mode goes straight to Step Mode
         self._state = "stepping"
 
+    def _said(self) -> str:
+        return f" (FMU log: {self.messages[-1].strip()})" if self.messages else ""
+
     def do_step(self, t: float, h: float) -> None:
         if self.fmi_version == "2.0":
-            self._call("doStep", self.fmu.doStep, t, h)
+            from fmpy.fmi1 import FMICallException
+            from fmpy.fmi2 import fmi2Discard, fmi2LastSuccessfulTime, fmi2Terminated
+
+            try:
+                self.fmu.doStep(t, h)
+            except FMICallException as exc:
+                # PythonFMU reports every failed step as fmi2Discard + fmi2Terminated: for
+                # its FMUs (ours) that is a failure, for others a request to end the run
+                if exc.status == fmi2Discard and not self._pythonfmu:
+                    ask = self._call(
+                        "fmi2GetBooleanStatus", self.fmu.getBooleanStatus, fmi2Terminated
+                    )
+                    if ask:
+                        last = self._call(
+                            "fmi2GetRealStatus", self.fmu.getRealStatus, fmi2LastSuccessfulTime
+                        )
+                        raise BlockTerminated(
+                            "fmi2DoStep",
+                            f"the FMU asked to end the simulation (fmi2Discard, fmi2Terminated) "
+                            f"at t = {last:.9g} s{self._said()}",
+                            last,
+                        ) from exc
+                raise BlockCallError("fmi2DoStep", f"{exc}{self._said()}") from exc
             return
-        _event, terminate, early, last = self._call("doStep", self.fmu.doStep, t, h)
+        _event, terminate, early, last = self._call("fmi3DoStep", self.fmu.doStep, t, h)
         if terminate:
-            raise BlockCallError(
-                "fmi3DoStep", f"the FMU asked to terminate the simulation (at t = {last:.9g} s)"
+            end = last if early else t + h
+            raise BlockTerminated(
+                "fmi3DoStep",
+                f"the FMU asked to end the simulation (terminateSimulation) at t = {end:.9g} s"
+                f"{self._said()}",
+                end,
             )
         if early:  # pragma: no cover - early return is not allowed at instantiation
             raise BlockCallError(
@@ -698,7 +789,7 @@ class FmuHost(BlockHost):
         self._set["Real"](vrs, values)
 
     def reset(self) -> None:
-        self._call("reset", self.fmu.reset)
+        self._call("fmi2Reset" if self.fmi_version == "2.0" else "fmi3Reset", self.fmu.reset)
         self._state = "instantiated"
 
     def terminate(self) -> None:

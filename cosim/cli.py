@@ -182,8 +182,13 @@ def fmus(fmu_dir: Path, build: bool) -> None:
     bad = 0
     click.echo(f"{'FMU':<28} {'FMI':<4} {'GUID':<37} {'sha256':<13} problems")
     for f in files:
-        problems = validate_fmu(str(f))
-        md = read_model_description(str(f), validate=False)
+        try:
+            problems = validate_fmu(str(f))
+            md = read_model_description(str(f), validate=False)
+        except Exception as exc:  # one unreadable file must not hide the others
+            bad += 1
+            click.echo(f"{f.name:<28} unreadable: {exc}")
+            continue
         bad += bool(problems)
         digest = file_sha256(f)[:12]
         click.echo(f"{f.name:<28} {md.fmiVersion:<4} {md.guid:<37} {digest:<13} {len(problems)}")

@@ -79,9 +79,11 @@ class SimulationError(UserError, RuntimeError):
     time : float
         Simulated time of the failure [s].
     variable : str, optional
-        The variable (or FMI call) concerned.
+        The variable concerned.
     result : Any, optional
         The :class:`cosim.results.RunResult` recorded up to the failure.
+    call : str, optional
+        The FMI call (``fmi2DoStep``) or block call (``do_step``) that failed.
     """
 
     exit_code = 4
@@ -93,10 +95,14 @@ class SimulationError(UserError, RuntimeError):
         time: float,
         variable: str | None = None,
         result: Any = None,
+        call: str | None = None,
     ) -> None:
         self.block = block
         self.time = time
         self.variable = variable
         self.result = result
+        self.call = call
         what = f"block '{block}'" + (f", variable '{variable}'" if variable else "")
+        if call:
+            what += f", {'FMI call' if call.startswith('fmi') else 'call'} {call}"
         super().__init__(f"{what}, t = {time:.6g} s: {message}")

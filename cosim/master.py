@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cosim.blocks import REAL, BlockCallError, BlockHost
+from cosim.blocks import REAL, BlockCallError, BlockHost, BlockTerminated
 from cosim.errors import ScenarioError, SimulationError
 from cosim.results import RunResult
 
@@ -310,9 +310,37 @@ class Master:
             )
         record = sys_.record
         if record is None:
-            record = [(b, v.name) for b in sys_.blocks for v in self._outputs[b][2]]
+            record = [
+                (b, v.name) for b in sys_.blocks for v in sys_.blocks[b].by_causality("output")
+            ]
         self.record = record
-        self._record_idx = np.array([slots[r] for r in record], dtype=int)
+        # Real columns come from the value table; the other types (Integer, Boolean,
+        # Enumeration, FMI 3 integers, String) are read from their block when a row is
+        # recorded (they hold between steps like everything else). Columns are 1-based
+        # (0 is the time).
+        self.types = {f"{b}.{v}": sys_.blocks[b].variables[v].type for b, v in record}
+        real = [
+            (i + 1, r)
+            for i, r in enumerate(record)
+            if sys_.blocks[r[0]].variables[r[1]].type == REAL
+        ]
+        self._real_cols = np.array([i for i, _r in real], dtype=int)
+        typed: dict[tuple[str, str], list[tuple[int, int, str]]] = {}
+        for i, (b, v) in enumerate(record, start=1):
+            var = sys_.blocks[b].variables[v]
+            if var.type != REAL:
+                typed.setdefault((b, var.type), []).append((i, var.vr, f"{b}.{v}"))
+        self._typed = [
+            (
+                sys_.blocks[b],
+                vtype,
+                [vr for _i, vr, _n in items],
+                [i for i, _vr, _n in items],
+                [n for *_x, n in items],
+            )
+            for (b, vtype), items in typed.items()
+        ]
+        self._record_idx = np.array([slots[r] for _i, r in real], dtype=int)
 
     def warn_loops(self) -> None:
         """Warn (:class:`CouplingWarning`) once per feedback loop broken by a delay.
@@ -357,8 +385,11 @@ class Master:
         jacobi = s.coupling == JACOBI
         row = 0
 
-        def result(status: str, error: str = "") -> RunResult:
+        def result(status: str, error: str = "", ended: dict | None = None) -> RunResult:
             meta = dict(self.metadata)
+            meta["types"] = self.types
+            if ended is not None:  # a block asked to end the run (not a failure)
+                meta["terminated"] = ended
             # the seeds in force for this run (campaigns change them between runs)
             meta["seeds"] = {b: p["seed"] for b, p in sys_.parameters.items() if "seed" in p}
             meta["master"] = {
@@ -371,10 +402,13 @@ class Master:
                 "delayed": [str(c) for c in self.delayed],
                 "rates": dict(zip(self.order, rates, strict=True)),
             }
-            return RunResult(data[:row].copy(), meta, status=status, error=error)
+            texts = {n: list(x) for n, x in strings.items()}
+            return RunResult(data[:row].copy(), meta, status=status, error=error, strings=texts)
 
-        def fail(exc: Exception, name: str, t: float, variable: str | None) -> SimulationError:
-            err = SimulationError(str(exc), block=name, time=t, variable=variable)
+        def fail(
+            exc: Exception, name: str, t: float, variable: str | None, call: str | None = None
+        ) -> SimulationError:
+            err = SimulationError(str(exc), block=name, time=t, variable=variable, call=call)
             err.result = result("failed", str(err))
             return err
 
@@ -391,7 +425,24 @@ class Master:
             )
         # the recording as a plain (rows, columns) float view of the structured array
         table = data.view(np.float64).reshape(n_rows, len(names))
-        record_idx = self._record_idx
+        record_idx, real_cols, typed = self._record_idx, self._real_cols, self._typed
+        strings: dict[str, list[str]] = {
+            n: [] for _h, vtype, _v, _c, ns in typed if vtype in ("String", "Binary") for n in ns
+        }
+
+        def write(row: int, t: float) -> None:
+            table[row, 0] = t
+            table[row, real_cols] = values[record_idx]
+            for host, vtype, vrs, cols, ns in typed:
+                got = host.get_values(vtype, vrs)
+                if vtype in ("String", "Binary"):  # text columns: NaN here, text in the CSV
+                    for n, x in zip(ns, got, strict=True):
+                        if isinstance(x, bytes):  # Binary as hex digits; FMI 2 strings as bytes
+                            x = x.hex() if vtype == "Binary" else x.decode("utf-8", "replace")
+                        strings[n].append(str(x))
+                    table[row, cols] = np.nan
+                else:  # Integer, Boolean, Enumeration, FMI 3 numbers: exact up to 2**53
+                    table[row, cols] = [float(x) for x in got]
 
         def transfer(host: BlockHost, vrs: list[int], idx: np.ndarray, factor, source) -> None:
             if vrs:
@@ -420,10 +471,9 @@ class Master:
                 transfer(host, in_vrs, in_idx, factor, before_init if jacobi else values)
                 host.exit_init()
             except BlockCallError as exc:
-                raise fail(exc, name, t0, exc.call) from exc
+                raise fail(exc, name, t0, None, exc.call) from exc
             collect(name, host, out_vrs, out_idx, outs, t0)
-        table[0, 0] = t0
-        table[0, 1:] = values[record_idx]
+        write(0, t0)
         row = 1
 
         # -- macro steps ----------------------------------------------------------
@@ -434,15 +484,23 @@ class Master:
                 if (n + 1) % k:
                     continue
                 transfer(host, in_vrs, in_idx, factor, source)
-                t_begin = t0 + (n + 1 - k) * h
+                # the step ends exactly on t_{n+1} as computed here: h_n = t_{n+1} - t_begin
+                t_begin, t_end = t0 + (n + 1 - k) * h, t0 + (n + 1) * h
                 try:
-                    host.do_step(t_begin, k * h)
+                    host.do_step(t_begin, t_end - t_begin)
+                except BlockTerminated as exc:
+                    # the block asked to end the run: keep its last sample, stop cleanly
+                    # (blocks after it in the order have not stepped to this time)
+                    collect(name, host, out_vrs, out_idx, outs, exc.time)
+                    write(row, exc.time)
+                    row += 1
+                    ended = {"block": name, "time": exc.time, "call": exc.call, "reason": str(exc)}
+                    return result("completed", ended=ended)
                 except BlockCallError as exc:
-                    raise fail(exc, name, t_begin, exc.call) from exc
-                collect(name, host, out_vrs, out_idx, outs, t0 + (n + 1) * h)
+                    raise fail(exc, name, t_begin, None, exc.call) from exc
+                collect(name, host, out_vrs, out_idx, outs, t_end)
             if (n + 1) % every == 0:
-                table[row, 0] = t0 + (n + 1) * h
-                table[row, 1:] = values[record_idx]
+                write(row, t0 + (n + 1) * h)
                 row += 1
         return result("completed")
 

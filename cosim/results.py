@@ -2,14 +2,19 @@
 
 On disk a result is two files side by side::
 
-    results.csv    header row of column names, one row per recorded time, SI units
+    results.csv    header row of column names, one row per recorded time, SI units;
+                   Integer, Boolean (0/1) and Enumeration outputs as integers, String
+                   outputs as text (quoted when needed)
     results.json   metadata: scenario file and sha256, blocks (source, FMU GUID and
-                   sha256, FMI version), seeds, units of every column, master settings,
-                   status and error, software versions
+                   sha256, FMI version), seeds, units and types of every column,
+                   master settings, status and error (and ``terminated`` when a block
+                   ended the run early), software versions
 """
 
 from __future__ import annotations
 
+import csv as csv_module
+import io
 import json
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,12 +37,16 @@ class RunResult:
         ``"completed"`` or ``"failed"``.
     error : str
         The failure message when ``status == "failed"``.
+    strings : dict
+        Column name -> its values, one per row, for String outputs (their columns in
+        :attr:`data` hold NaN).
     """
 
     data: np.ndarray
     metadata: dict[str, Any] = field(default_factory=dict)
     status: str = "completed"
     error: str = ""
+    strings: dict[str, list[str]] = field(default_factory=dict)
 
     @property
     def time(self) -> np.ndarray:
@@ -78,14 +87,24 @@ class RunResult:
         out_dir.mkdir(parents=True, exist_ok=True)
         csv = out_dir / f"{stem}.csv"
         header = ",".join(self.names)
-        np.savetxt(
-            csv,
-            self.data.view((np.float64, len(self.names))).reshape(-1, len(self.names)),
-            delimiter=",",
-            header=header,
-            comments="",
-            fmt="%.17g",
-        )
+        table = self.data.view((np.float64, len(self.names))).reshape(-1, len(self.names))
+        if not self.strings:
+            np.savetxt(csv, table, delimiter=",", header=header, comments="", fmt="%.17g")
+        else:
+            text = {self.names.index(n): values for n, values in self.strings.items()}
+            types = self.metadata.get("types", {})
+            whole = {i for i, n in enumerate(self.names) if types.get(n, "Real") != "Real"}
+            buffer = io.StringIO()
+            writer = csv_module.writer(buffer, lineterminator="\n")
+            writer.writerow(self.names)
+            for r, row in enumerate(table):
+                writer.writerow(
+                    [
+                        text[i][r] if i in text else (f"{int(x)}" if i in whole else f"{x:.17g}")
+                        for i, x in enumerate(row)
+                    ]
+                )
+            csv.write_text(buffer.getvalue())
         meta = dict(self.metadata)
         meta["status"] = self.status
         meta["error"] = self.error
@@ -109,14 +128,30 @@ class RunResult:
         RunResult
         """
         csv = Path(csv)
-        names = csv.read_text().split("\n", 1)[0].strip().split(",")
-        raw = np.loadtxt(csv, delimiter=",", skiprows=1, ndmin=2)
+        meta_file = csv.with_suffix(".json")
+        meta = json.loads(meta_file.read_text()) if meta_file.exists() else {}
+        types = meta.get("types", {})
+        text_cols = [n for n, t in types.items() if t in ("String", "Binary")]
+        strings: dict[str, list[str]] = {}
+        if not text_cols:
+            names = csv.read_text().split("\n", 1)[0].strip().split(",")
+            raw = np.loadtxt(csv, delimiter=",", skiprows=1, ndmin=2)
+        else:
+            rows = list(csv_module.reader(io.StringIO(csv.read_text())))
+            names, body = rows[0], rows[1:]
+            strings = {n: [r[names.index(n)] for r in body] for n in text_cols if n in names}
+            raw = np.array(
+                [
+                    [np.nan if n in strings else float(x) for n, x in zip(names, r, strict=True)]
+                    for r in body
+                ],
+                dtype=float,
+            ).reshape(len(body), len(names))
         data = np.zeros(len(raw), dtype=[(n, "f8") for n in names])
         for i, n in enumerate(names):
             data[n] = raw[:, i]
-        meta_file = csv.with_suffix(".json")
-        meta = json.loads(meta_file.read_text()) if meta_file.exists() else {}
-        return cls(data, meta, meta.get("status", "completed"), meta.get("error", ""))
+        status, error = meta.get("status", "completed"), meta.get("error", "")
+        return cls(data, meta, status, error, strings)
 
 
 def _jsonable(obj: Any) -> Any:

@@ -65,6 +65,13 @@ BLOCK_KEYS = {
 MASTER_KEYS = {"step", "stop", "start", "coupling"}
 SETTING_KEYS = {"step", "stop", "start", "coupling", "record_every"}
 OUTPUT_KEYS = {"variables", "every"}
+#: Value range of every integer type (FMI 2 Integer, FMI 3 Int8..UInt64, Enumeration).
+INTEGER_RANGES = {
+    "Integer": (-(2**31), 2**31 - 1),
+    "Enumeration": (-(2**63), 2**63 - 1),
+    **{f"Int{n}": (-(2 ** (n - 1)), 2 ** (n - 1) - 1) for n in (8, 16, 32, 64)},
+    **{f"UInt{n}": (0, 2**n - 1) for n in (8, 16, 32, 64)},
+}
 _LINK = re.compile(r"^\s*(\w+)\.([\w\[\]]+)\s*->\s*(\w+)\.([\w\[\]]+)\s*$")
 _NAME = re.compile(r"^[A-Za-z_]\w*$")
 _DUPLICATE = re.compile(r"Cannot (?:declare|overwrite) \('blocks', '(\w+)'\) twice \(at (line \d+)")
@@ -314,7 +321,8 @@ class Scenario:
                     key=key,
                 )
             try:
-                value = to_unit(raw, var0.conversion_unit) if var0.type == REAL else raw
+                real = var0.type in (REAL, "Float32")
+                value = to_unit(raw, var0.conversion_unit) if real else raw
             except UnitError as exc:
                 raise self.error(
                     f"{exc.message} (variable '{spec.name}.{pname}'{_own(var0)})", key=key
@@ -331,21 +339,45 @@ class Scenario:
         return out
 
     def _typed(self, value: Any, var: Variable, key: str) -> Any:
-        if var.type == REAL:
+        """The value as the variable's FMI type takes it, or one line saying why not."""
+        t = var.type
+        if t in (REAL, "Float32"):
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise self.error(f"expected a number for '{var.name}', got {value!r}", key=key)
             return float(value)
-        if var.type == "Integer":
+        if t in INTEGER_RANGES:
+            lo, hi = INTEGER_RANGES[t]
             if isinstance(value, float) and value.is_integer():
                 value = int(value)
-            if isinstance(value, bool) or not isinstance(value, int):
-                raise self.error(f"expected an integer for '{var.name}', got {value!r}", key=key)
+            if isinstance(value, bool) or not isinstance(value, int) or not lo <= value <= hi:
+                what = "the item's integer value" if t == "Enumeration" else "an integer"
+                raise self.error(
+                    f"expected {what} in [{lo}, {hi}] for '{var.name}' ({t}), got {value!r}",
+                    key=key,
+                )
             return value
-        if var.type == "Boolean":
+        if t == "Boolean":
             if not isinstance(value, bool):
                 raise self.error(f"expected true or false for '{var.name}', got {value!r}", key=key)
             return value
-        return str(value)
+        if t == "String":
+            if not isinstance(value, str):
+                raise self.error(f"expected a string for '{var.name}', got {value!r}", key=key)
+            return value
+        if t == "Binary":
+            try:
+                return bytes.fromhex(value) if isinstance(value, str) else bytes(value)
+            except (TypeError, ValueError):
+                raise self.error(
+                    f"expected hex digits such as '0a1bff' for '{var.name}' (Binary), got "
+                    f"{value!r}",
+                    key=key,
+                ) from None
+        raise self.error(
+            f"'{var.name}' is a {t} variable; ins-cosim sets Real, Float32, the integer types, "
+            f"Enumeration, Boolean, String and Binary variables, not {t}",
+            key=key,
+        )
 
     @staticmethod
     def _expand(host: BlockHost, name: str) -> list[Variable]:
@@ -498,14 +530,14 @@ class Scenario:
                 )
             host = hosts[block]
             if not var:
-                out += [(block, v.name) for v in host.by_causality("output") if v.type == REAL]
+                out += [(block, v.name) for v in host.by_causality("output") if v.type != "Clock"]
                 continue
             scalars = self._expand(host, var)
-            if not scalars or any(v.causality != "output" or v.type != REAL for v in scalars):
+            if not scalars or any(v.causality != "output" or v.type == "Clock" for v in scalars):
                 names = _bases([v.name for v in host.by_causality("output")])
                 raise self.error(
-                    f"'{item}' is not a Real output of block '{block}'; outputs: "
-                    f"{', '.join(names)}",
+                    f"'{item}' is not an output of block '{block}' that can be recorded; "
+                    f"outputs: {', '.join(names)}",
                     key=key,
                 )
             out += [(block, v.name) for v in scalars]
@@ -518,7 +550,7 @@ class Scenario:
             (b, v.name)
             for b, h in hosts.items()
             for v in h.by_causality("output")
-            if v.type == REAL
+            if v.type != "Clock"
         ]
         units = {"time": "s"}
         units.update({f"{b}.{v}": hosts[b].variables[v].unit for b, v in record})

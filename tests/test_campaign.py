@@ -221,7 +221,7 @@ def test_a_failing_fmu_run_is_recorded_and_the_campaign_goes_on(
     status = [r.status for r in campaign.records]
     assert status == ["completed"] * 3 + ["failed"] + ["completed"] * 4
     failed = campaign.records[3]
-    assert "block 'filter'" in failed.error and "doStep" in failed.error
+    assert "block 'filter'" in failed.error and "fmi2DoStep" in failed.error
     assert "t = 1.5 s" in failed.error
     assert failed.history["time"][-1] == pytest.approx(1.5)  # partial history kept
     assert all(m is None for m in failed.metrics.values())
@@ -235,7 +235,7 @@ def test_a_failing_fmu_run_is_recorded_and_the_campaign_goes_on(
     assert v3.verdict == VIOLATED
     assert campaign.exit_code == 1
     table = rows(tmp_path / "out" / "metrics.csv")
-    assert table[3]["status"] == "failed" and "doStep" in table[3]["error"]
+    assert table[3]["status"] == "failed" and "fmi2DoStep" in table[3]["error"]
     assert table[3]["ALIGN-2 [arcmin]"] == "" and table[4]["ALIGN-2 pass"] == "1"
     # the runs after the failure (same worker, blocks reset) match a clean run of them
     clean = run_campaign(

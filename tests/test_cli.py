@@ -168,9 +168,9 @@ def test_fmu_do_step_error_stops_with_block_call_time(cli, tmp_path: Path, fault
         "[blocks.bad]\nfmu = 'Faulty.fmu'\nparameters = { fail_time = '0.5 s', mode = 2 }\n"
     )
     res = cli("run", write(tmp_path, text), "--out", tmp_path / "out")
-    assert_user_error(res, "block 'bad'", "doStep", "t = 0.5 s", code=4)
+    assert_user_error(res, "block 'bad', FMI call fmi2DoStep", "t = 0.5 s", code=4)
     partial = RunResult.load(tmp_path / "out" / "results.csv")
-    assert partial.status == "failed" and "doStep" in partial.error
+    assert partial.status == "failed" and "fmi2DoStep" in partial.error
     assert len(partial.data) == 51 and partial.time[-1] == 0.5
 
 

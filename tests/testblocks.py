@@ -131,3 +131,16 @@ class Converging(Block):
         self.step(current_time, step_size)
         failing = self.seed == self.fail_seed and current_time + step_size > self.fail_time
         return not failing
+
+
+class StepLog(Block):
+    """Keeps every (t, h) it is stepped with (the master's step ends), in ``steps``."""
+
+    variables = (output("n", 0.0, "1"),)
+
+    def initialize(self) -> None:
+        self.steps: list[tuple[float, float]] = []
+
+    def step(self, t: float, h: float) -> None:
+        self.steps.append((t, h))
+        self.n = float(len(self.steps))

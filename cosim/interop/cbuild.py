@@ -73,7 +73,10 @@ def _describe(xml_text: str, where: str) -> tuple[str, str]:
     major = version.split(".", 1)[0]
     if major not in _PLATFORM:
         raise CBuildError(f"{where}: expected fmiVersion 2.0 or 3.0, got {version!r}")
-    cs = root.find("CoSimulation")
+    # the identifier of the co-simulation interface, else of the one the FMU has (the
+    # tests build Scheduled-Execution-only and Model-Exchange-only FMUs on purpose)
+    kinds = ("CoSimulation", "ScheduledExecution", "ModelExchange")
+    cs = next((e for e in map(root.find, kinds) if e is not None), None)
     if cs is None or not cs.get("modelIdentifier"):
         raise CBuildError(
             f"{where}: expected a <CoSimulation modelIdentifier=...> element, got none"

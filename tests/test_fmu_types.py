@@ -1,0 +1,131 @@
+"""Issue 16, items 2, 3 and 7: every output type recorded, FMUs that end the run early,
+step ends on the master's time grid.
+
+The fixture tests/fixtures/stair2 (C, FMI 2.0, compiled by the test run) is shaped like
+the Reference-FMUs' Stair: an Integer counter, a Boolean and a String output, and a
+request to end the simulation at ``stop_at`` (fmi2Discard + fmi2Terminated).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+from fmpy import simulate_fmu
+
+import cosim
+from cosim.interop.cbuild import build_c_fmu
+from cosim.results import RunResult
+
+ROOT = Path(__file__).resolve().parents[1]
+
+SCENARIO = """
+[master]
+step = "0.5 s"
+stop = "12 s"
+
+[blocks.steps]
+fmu = "{fmu}"
+parameters = {{ stop_at = "{stop_at}" }}
+"""
+
+
+@pytest.fixture(scope="module")
+def steps_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("steps") / "Steps.fmu"
+    return build_c_fmu(ROOT / "tests" / "fixtures" / "stair2", out)
+
+
+def scenario(tmp_path: Path, fmu: Path, stop_at: str = "10 s") -> Path:
+    path = tmp_path / "steps.toml"
+    path.write_text(SCENARIO.format(fmu=fmu, stop_at=stop_at))
+    return path
+
+
+def test_an_fmu_that_asks_to_stop_ends_the_run_cleanly(cli, steps_fmu, tmp_path) -> None:
+    res = cli("run", scenario(tmp_path, steps_fmu), "--out", tmp_path / "o", "--no-plot")
+    assert res.code == 0, res.err
+    assert "Traceback" not in res.err
+    result = RunResult.load(tmp_path / "o" / "results.csv")
+    assert result.status == "completed"
+    assert result.time[-1] == 10.0 and len(result.time) == 21  # the last sample is kept
+    note = result.metadata["terminated"]
+    assert note["block"] == "steps" and note["time"] == 10.0 and note["call"] == "fmi2DoStep"
+    assert "fmi2Discard, fmi2Terminated" in note["reason"]
+
+
+def test_integer_boolean_and_string_outputs_are_recorded(cli, steps_fmu, tmp_path) -> None:
+    res = cli("run", scenario(tmp_path, steps_fmu), "--out", tmp_path / "o", "--no-plot")
+    assert res.code == 0, res.err
+    meta = json.loads((tmp_path / "o" / "results.json").read_text())
+    assert meta["types"] == {
+        "steps.ramp": "Real",
+        "steps.counter": "Integer",
+        "steps.odd": "Boolean",
+        "steps.label": "String",
+    }
+    lines = (tmp_path / "o" / "results.csv").read_text().splitlines()
+    assert lines[0] == "time,steps.ramp,steps.counter,steps.odd,steps.label"
+    assert lines[3] == "1,1,2,0,step 2"
+    assert lines[-1] == "10,10,11,1,step 11"
+    result = RunResult.load(tmp_path / "o" / "results.csv")
+    assert result.strings["steps.label"][-1] == "step 11"
+    assert result["steps.counter"][-1] == 11
+
+
+def test_agrees_with_fmpy_at_the_same_output_times(steps_fmu, tmp_path) -> None:
+    ours = cosim.run(scenario(tmp_path, steps_fmu, "7.25 s"))
+    theirs = simulate_fmu(
+        str(steps_fmu),
+        stop_time=12.0,
+        output_interval=0.5,
+        start_values={"stop_at": 7.25},
+        output=["ramp", "counter", "odd"],
+    )
+    assert ours.time.tolist() == theirs["time"].tolist()  # both end at 7.25 s
+    assert ours["steps.ramp"].tolist() == theirs["ramp"].tolist()  # Real: bit for bit
+    assert ours["steps.counter"].astype(int).tolist() == theirs["counter"].tolist()
+    assert ours["steps.odd"].astype(bool).tolist() == theirs["odd"].tolist()
+
+
+def test_step_sizes_end_on_the_master_grid() -> None:
+    from testblocks import StepLog
+
+    from cosim.blocks import InProcessHost
+    from cosim.master import Master, MasterSettings, System
+
+    host = InProcessHost("log", StepLog)
+    settings = MasterSettings(0.1, 10.0, start=0.3)
+    master = Master(System({"log": host}, []), settings)
+    try:
+        master.run()
+        steps = host.instance.steps
+    finally:
+        master.terminate()
+    for n, (t, h) in enumerate(steps):
+        assert t == 0.3 + n * 0.1
+        assert t + h == 0.3 + (n + 1) * 0.1, n  # not t + 0.1: one rounding less
+
+
+def test_an_fmi3_fmu_that_asks_to_stop_agrees_with_fmpy(fmi3_ramp_fmu: Path, tmp_path) -> None:
+    path = tmp_path / "ramp.toml"
+    path.write_text(
+        f'[master]\nstep = "0.1 s"\nstop = "2 s"\n\n[blocks.ramp]\nfmu = "{fmi3_ramp_fmu}"\n'
+        f'parameters = {{ stop_at = "0.75 s" }}\nunconnected_ok = ["u"]\n'
+    )
+    ours = cosim.run(path)
+    assert ours.status == "completed"
+    assert ours.metadata["terminated"]["call"] == "fmi3DoStep"
+    assert "terminateSimulation" in ours.metadata["terminated"]["reason"]
+    theirs = simulate_fmu(
+        str(fmi3_ramp_fmu),
+        stop_time=2.0,
+        output_interval=0.1,
+        start_values={"stop_at": 0.75},
+        output=["y", "steps"],
+    )
+    assert ours.time.tolist() == theirs["time"].tolist()  # the last sample (0.8 s) kept
+    assert ours["ramp.y"].tolist() == theirs["y"].tolist()  # bit for bit
+    assert ours["ramp.steps"].astype(int).tolist() == theirs["steps"].tolist()
+    assert ours.metadata["types"]["ramp.steps"] == "Integer"
