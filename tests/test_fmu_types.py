@@ -129,3 +129,90 @@ def test_an_fmi3_fmu_that_asks_to_stop_agrees_with_fmpy(fmi3_ramp_fmu: Path, tmp
     assert ours["ramp.y"].tolist() == theirs["y"].tolist()  # bit for bit
     assert ours["ramp.steps"].astype(int).tolist() == theirs["steps"].tolist()
     assert ours.metadata["types"]["ramp.steps"] == "Integer"
+
+
+@pytest.fixture(scope="module")
+def decay_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("decay") / "Decay.fmu"
+    return build_c_fmu(ROOT / "tests" / "fixtures" / "decay2", out)
+
+
+@pytest.fixture(scope="module")
+def echo_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("echo") / "Echo.fmu"
+    return build_c_fmu(ROOT / "tests" / "fixtures" / "echo2", out)
+
+
+def test_internal_steps_up_to_the_step_end_agree_with_fmpy(decay_fmu: Path, tmp_path) -> None:
+    # like Reference-FMUs Roberts: a step end one rounding off would cost an extra step
+    path = tmp_path / "decay.toml"
+    path.write_text(
+        f'[master]\nstep = "0.1 s"\nstop = "3 s"\n\n[blocks.d]\nfmu = "{decay_fmu}"\n'
+        f'parameters = {{ k = 0.7, dt_int = "30 ms" }}\n'
+    )
+    ours = cosim.run(path)
+    theirs = simulate_fmu(
+        str(decay_fmu),
+        stop_time=3.0,
+        output_interval=0.1,
+        start_values={"k": 0.7, "dt_int": 0.03},
+        output=["x", "n_int"],
+    )
+    assert ours.time.tolist() == theirs["time"].tolist()
+    assert ours["d.x"].tolist() == theirs["x"].tolist()  # bit for bit
+    assert ours["d.n_int"].astype(int).tolist() == theirs["n_int"].tolist()
+    assert int(ours["d.n_int"][-1]) == 120  # 4 internal steps per 0.1 s, none extra
+
+
+def test_every_fmi2_type_is_set_and_echoed(echo_fmu: Path, tmp_path) -> None:
+    values = {
+        "p_real": 1.5,
+        "u_real": 0.25,
+        "p_int": 3,
+        "u_int": -7,
+        "u_enum": 3,
+        "p_bool": True,
+        "u_bool": False,
+        "p_str": "abc",
+        "u_str": "xyz",
+    }
+    table = ", ".join(
+        f"{k} = {str(v).lower() if isinstance(v, bool) else repr(v).replace(chr(39), chr(34))}"
+        for k, v in values.items()
+    )
+    path = tmp_path / "echo.toml"
+    path.write_text(
+        f'[master]\nstep = "0.25 s"\nstop = "1 s"\n\n[blocks.e]\nfmu = "{echo_fmu}"\n'
+        f"parameters = {{ {table} }}\n"
+    )
+    ours = cosim.run(path)
+    theirs = simulate_fmu(
+        str(echo_fmu),
+        stop_time=1.0,
+        output_interval=0.25,
+        start_values=values,
+        output=["y_real", "y_int", "y_enum", "y_bool"],
+    )
+    assert ours.time.tolist() == theirs["time"].tolist()
+    assert ours["e.y_real"].tolist() == theirs["y_real"].tolist()
+    for name in ("y_int", "y_enum"):
+        assert ours[f"e.{name}"].astype(int).tolist() == theirs[name].tolist()
+    assert ours["e.y_bool"].astype(bool).tolist() == theirs["y_bool"].tolist()
+    assert ours.strings["e.y_str"] == ["abc/xyz"] * 5
+    assert ours.metadata["types"]["e.y_enum"] == "Enumeration"
+
+
+def test_a_value_that_does_not_fit_its_type_is_one_line(cli, echo_fmu: Path, tmp_path) -> None:
+    for value, message in [
+        ("3.5", "expected an integer in [-2147483648, 2147483647] for 'p_int' (Integer)"),
+        ('"x"', "expected an integer in [-2147483648, 2147483647] for 'p_int' (Integer)"),
+    ]:
+        path = tmp_path / "bad.toml"
+        path.write_text(
+            f'[master]\nstep = "0.25 s"\nstop = "1 s"\n\n[blocks.e]\nfmu = "{echo_fmu}"\n'
+            f"parameters = {{ p_int = {value} }}\nunconnected_ok = "
+            f'["u_real", "u_int", "u_enum", "u_bool", "u_str"]\n'
+        )
+        res = cli("check", path)
+        assert res.code == 3 and "Traceback" not in res.err, res.err
+        assert message in res.err and len(res.err.strip().splitlines()) == 1, res.err

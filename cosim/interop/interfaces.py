@@ -657,8 +657,10 @@ def check_role_inputs(scenario: Any, system: Any, unconnected: Mapping[str, Any]
     """
     for name, spec in scenario.blocks.items():
         left = unconnected.get(name) or {}
+        if not left:  # the role specs are read only for blocks with inputs left unset
+            continue
         role = block_role(spec.kind, spec.source, spec.role)
-        if not left or not role:
+        if not role:
             continue
         match = match_role(system.blocks[name].variables, load_role(role), suggest=False)
         stated = set(spec.unconnected_ok)
