@@ -216,3 +216,74 @@ def test_a_value_that_does_not_fit_its_type_is_one_line(cli, echo_fmu: Path, tmp
         res = cli("check", path)
         assert res.code == 3 and "Traceback" not in res.err, res.err
         assert message in res.err and len(res.err.strip().splitlines()) == 1, res.err
+
+
+@pytest.fixture(scope="module")
+def echo3_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("echo3") / "Echo3.fmu"
+    return build_c_fmu(ROOT / "tests" / "fixtures" / "echo3", out)
+
+
+def test_every_fmi3_type_is_set_and_echoed(echo3_fmu: Path, tmp_path) -> None:
+    numbers = {
+        "p_float64": 1.5,
+        "u_float64": 0.25,
+        "p_float32": 0.1,
+        "u_float32": 0.2,
+        "p_int8": -100,
+        "u_int8": -20,
+        "p_uint8": 200,
+        "u_uint8": 50,
+        "p_int16": 30000,
+        "u_int16": 1000,
+        "p_uint16": 60000,
+        "u_uint16": 5000,
+        "p_int32": -(2**30),
+        "u_int32": 12,
+        "p_uint32": 2**31,
+        "u_uint32": 9,
+        "p_int64": -(2**40),
+        "u_int64": 7,
+        "p_uint64": 2**50,
+        "u_uint64": 5,
+        "u_enum": 3,
+        "p_boolean": True,
+        "u_boolean": False,
+    }
+    table = ", ".join(f"{k} = {str(v).lower()}" for k, v in numbers.items())
+    table += ', p_string = "abc", u_string = "xyz", p_binary = "0a0b", u_binary = "ff"'
+    path = tmp_path / "echo3.toml"
+    path.write_text(
+        f'[master]\nstep = "0.25 s"\nstop = "1 s"\n\n[blocks.e]\nfmu = "{echo3_fmu}"\n'
+        f"parameters = {{ {table} }}\n"
+    )
+    ours = cosim.run(path)
+    outputs = [f"y_{k[2:]}" for k in numbers if k.startswith("u_")]
+    theirs = simulate_fmu(
+        str(echo3_fmu), stop_time=1.0, output_interval=0.25, start_values=numbers, output=outputs
+    )
+    assert ours.time.tolist() == theirs["time"].tolist()
+    for name in outputs:
+        mine = ours[f"e.{name}"]
+        want = theirs[name].astype(float)  # ins-cosim records numbers as float64
+        assert mine.tolist() == want.tolist(), name  # Float64 and Float32: bit for bit
+    assert ours["e.y_int8"][-1] == -120 and ours["e.y_uint64"][-1] == 2**50 + 5
+    assert ours.strings["e.y_string"][-1] == "abc/xyz"
+    assert ours.strings["e.y_binary"][-1] == "0a0bff"
+    types = ours.metadata["types"]
+    assert (types["e.y_float32"], types["e.y_uint64"], types["e.y_enum"]) == (
+        "Float32",
+        "UInt64",
+        "Enumeration",
+    )
+
+
+def test_an_out_of_range_fmi3_integer_is_refused_by_check(cli, echo3_fmu, tmp_path) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(
+        f'[master]\nstep = "0.25 s"\nstop = "1 s"\n\n[blocks.e]\nfmu = "{echo3_fmu}"\n'
+        f"parameters = {{ p_uint8 = 256 }}\n"
+    )
+    res = cli("check", path)
+    assert res.code == 3 and "Traceback" not in res.err
+    assert "expected an integer in [0, 255] for 'p_uint8' (UInt8), got 256" in res.err
