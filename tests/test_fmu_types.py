@@ -287,3 +287,24 @@ def test_an_out_of_range_fmi3_integer_is_refused_by_check(cli, echo3_fmu, tmp_pa
     res = cli("check", path)
     assert res.code == 3 and "Traceback" not in res.err
     assert "expected an integer in [0, 255] for 'p_uint8' (UInt8), got 256" in res.err
+
+
+def test_fmi3_internal_steps_up_to_the_step_end_agree_with_fmpy(tmp_path: Path) -> None:
+    fmu = build_c_fmu(ROOT / "tests" / "fixtures" / "decay3", tmp_path / "Decay3.fmu")
+    path = tmp_path / "decay3.toml"
+    path.write_text(
+        f'[master]\nstep = "0.1 s"\nstop = "3 s"\n\n[blocks.d]\nfmu = "{fmu}"\n'
+        f'parameters = {{ k = 0.7, y0 = "1 s" }}\nunconnected_ok = ["u"]\n'
+    )
+    ours = cosim.run(path)
+    theirs = simulate_fmu(
+        str(fmu),
+        stop_time=3.0,
+        output_interval=0.1,
+        start_values={"k": 0.7, "y0": 1.0},
+        output=["y", "steps"],
+    )
+    assert ours.time.tolist() == theirs["time"].tolist()
+    assert ours["d.y"].tolist() == theirs["y"].tolist()  # bit for bit
+    assert ours["d.steps"].astype(int).tolist() == theirs["steps"].tolist()
+    assert int(ours["d.steps"][-1]) == 120
