@@ -19,11 +19,10 @@ import abc
 import ctypes
 import dataclasses
 import difflib
+import functools
 import hashlib
 import importlib
 import re
-import shutil
-import tempfile
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -33,6 +32,7 @@ from typing import Any
 import models  # noqa: F401  (imported before any FMU, so FMUs of ours reuse this copy)
 from cosim.errors import FmuError, UnitError
 from cosim.units import Unit, name_disagreement, unit_from_fmi
+from cosim.unpacked import drop_repeated_path_entries, unpacked_folders
 
 
 class UnitWarning(UserWarning):
@@ -290,9 +290,7 @@ class InProcessHost(BlockHost):
         super().__init__(name)
         self.cls = cls
         self.source = f"{cls.__module__}.{cls.__qualname__}"
-        self.guid = cls.model_guid() if hasattr(cls, "model_guid") else ""
-        source_file = importlib.import_module(cls.__module__).__file__
-        self.sha256 = file_sha256(Path(source_file)) if source_file else ""
+        self.guid, self.sha256 = class_identity(cls)
         self._new_instance()
         for sv in self.instance.vars.values():
             kind = type(sv).__name__
@@ -357,6 +355,28 @@ class InProcessHost(BlockHost):
 
     def terminate(self) -> None:
         self.instance.terminate()
+
+
+@functools.cache
+def class_identity(cls: type) -> tuple[str, str]:
+    """A block class's GUID and the SHA-256 of its source file, worked out once per process
+    (reading the source for every instance made checking 10^4 blocks slow).
+
+    Parameters
+    ----------
+    cls : type
+        A :class:`models.block.Block` subclass.
+
+    Returns
+    -------
+    guid : str
+        ``cls.model_guid()`` (empty when the class has none).
+    sha256 : str
+        Of the module's file (empty when it has none).
+    """
+    guid = cls.model_guid() if hasattr(cls, "model_guid") else ""
+    source_file = importlib.import_module(cls.__module__).__file__
+    return guid, file_sha256(Path(source_file)) if source_file else ""
 
 
 def file_sha256(path: str | Path) -> str:
@@ -601,16 +621,14 @@ class FmuHost(BlockHost):
         for note in sorted(n for n in notes if n):
             warnings.warn(f"block '{name}': FMU '{path.name}': {note}", UnitWarning, stacklevel=2)
         self._state = "none"
-        self._unzipdir = tempfile.mkdtemp(prefix=f"ins_cosim_{name}_")
+        self._unzipdir = unpacked_folders.acquire(path, self.sha256)
         try:
-            from fmpy import extract
-
-            extract(str(path), self._unzipdir)
             self._instantiate()
-        except FmuError:
-            raise
+            drop_repeated_path_entries()
         except Exception as exc:
-            shutil.rmtree(self._unzipdir, ignore_errors=True)
+            unpacked_folders.release(self._unzipdir)
+            if isinstance(exc, FmuError):
+                raise
             log = (
                 f" (FMU log: {' | '.join(m.strip() for m in self.messages[-3:])})"
                 if self.messages
@@ -793,12 +811,16 @@ class FmuHost(BlockHost):
         self._state = "instantiated"
 
     def terminate(self) -> None:
+        if self._state == "freed":  # a second terminate (cleanup after a failure) is a no-op
+            return
         try:
             # fmi2Terminate / fmi3Terminate are legal only after initialisation; an FMU
             # that was never set up (or failed in initialisation) is just freed
             if self._state == "stepping":
                 self.fmu.terminate()
         finally:
-            self._state = "none"
-            self.fmu.freeInstance()
-            shutil.rmtree(self._unzipdir, ignore_errors=True)
+            self._state = "freed"
+            try:
+                self.fmu.freeInstance()  # fmpy: fmi2FreeInstance, then the library unloaded
+            finally:
+                unpacked_folders.release(self._unzipdir)

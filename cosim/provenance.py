@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import platform
 from importlib import metadata
 
@@ -11,11 +12,19 @@ _PACKAGES = ("ins-cosim", "numpy", "scipy", "control", "fmpy", "pythonfmu", "pin
 def versions() -> dict[str, str]:
     """Versions of Python and of the packages a result depends on.
 
+    Looked up once per process (a look-up scans every ``sys.path`` entry, and the
+    metadata library keeps a cache entry per folder it scanned).
+
     Returns
     -------
     dict
         ``{"python": "3.11.7", "numpy": "2.1.0", ...}``; missing packages are omitted.
     """
+    return dict(_versions())
+
+
+@functools.cache
+def _versions() -> dict[str, str]:
     out = {"python": platform.python_version(), "platform": platform.platform()}
     for name in _PACKAGES:
         try:

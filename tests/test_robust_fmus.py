@@ -1,0 +1,178 @@
+"""FMUs run again and again in one process, and what they leave behind (issue 14, item 3 and
+the unpacked folders of item 6).
+
+Every instance of one FMU file unpacks into one folder per process
+(:class:`cosim.blocks.UnpackedFolders`), removed when its last instance is freed; its
+shared library is loaded from that one path, so repeated runs map nothing new.
+"""
+
+from __future__ import annotations
+
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+import zipfile
+from pathlib import Path
+
+import pytest
+
+import cosim
+from cosim.blocks import FmuHost
+from cosim.errors import FmuError
+from cosim.unpacked import PREFIX, unpacked_folders
+
+ROOT = Path(__file__).resolve().parents[1]
+TESTS = ROOT / "tests"
+DEMO = ROOT / "scenarios" / "demo.toml"
+BUILT = ROOT / "fmus" / "build"
+
+needs_fmus = pytest.mark.skipif(
+    not (BUILT / "GaussMarkov2.fmu").is_file(), reason="run `make fmus` first"
+)
+
+
+def mapped_libraries() -> int:
+    """The number of mappings of shared libraries in this process."""
+    with open("/proc/self/maps") as f:
+        return sum(1 for line in f if ".so" in line)
+
+
+def resident_mib() -> float:
+    """Resident memory of this process [MiB]."""
+    with open("/proc/self/status") as f:
+        for line in f:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) / 1024
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024  # pragma: no cover
+
+
+def own_folders(root: Path) -> list[Path]:
+    return sorted(root.glob(f"{PREFIX}{os.getpid()}_*"))
+
+
+@needs_fmus
+def test_fifty_runs_with_fmus_map_no_new_library_and_leave_no_folder() -> None:
+    cosim.run(DEMO, fmu_dir=BUILT, stop="1 s")
+    maps, path = mapped_libraries(), list(sys.path)
+    for _ in range(50):
+        cosim.run(DEMO, fmu_dir=BUILT, stop="1 s")
+    assert mapped_libraries() == maps  # was 12 more per run: two libraries from new folders
+    assert sys.path == path  # pythonfmu's resources entries are taken out again
+    assert unpacked_folders.in_use() == []
+    assert own_folders(unpacked_folders.root()) == []
+
+
+@needs_fmus
+def test_two_instances_of_one_fmu_share_one_folder_until_the_last_is_freed() -> None:
+    a = FmuHost("a", BUILT / "GaussMarkov2.fmu")
+    b = FmuHost("b", BUILT / "GaussMarkov2.fmu")
+    try:
+        assert a._unzipdir == b._unzipdir and Path(a._unzipdir).is_dir()
+        a.terminate()
+        a.terminate()  # a second terminate (cleanup after a failure) does nothing
+        assert Path(b._unzipdir).is_dir()
+    finally:
+        b.terminate()
+    assert not Path(b._unzipdir).exists()
+
+
+@needs_fmus
+def test_an_fmu_that_cannot_be_instantiated_leaves_no_folder(tmp_path: Path) -> None:
+    broken = tmp_path / "GaussMarkov2.fmu"
+    with zipfile.ZipFile(BUILT / "GaussMarkov2.fmu") as src, zipfile.ZipFile(broken, "w") as dst:
+        for item in src.infolist():
+            if not item.filename.startswith("binaries/"):
+                dst.writestr(item, src.read(item))
+    with pytest.raises(FmuError, match="cannot instantiate FMU"):
+        FmuHost("gm", broken)
+    assert unpacked_folders.in_use() == []
+    assert own_folders(unpacked_folders.root()) == []
+
+
+def _cli(
+    tmp: Path, *args: str, wait: bool = True
+) -> subprocess.Popen | subprocess.CompletedProcess:
+    env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(TESTS))
+    cmd = [sys.executable, "-m", "cosim.cli", *map(str, args)]
+    if not wait:
+        return subprocess.Popen(cmd, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    return subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300)
+
+
+def test_a_failing_run_with_an_fmu_leaves_nothing_in_the_temp_dir(
+    tmp_path: Path, faulty_fmu: Path
+) -> None:
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(
+        f'[master]\nstep = "10 ms"\nstop = "1 s"\n[blocks.bad]\nfmu = "{faulty_fmu}"\n'
+        "parameters = { mode = 2 }\n"
+    )
+    res = _cli(tmp, "run", scenario, "--out", tmp_path / "out", "--no-plot")
+    assert res.returncode == 4, res.stderr
+    assert "Traceback" not in res.stderr
+    assert (tmp_path / "out" / "results.csv").is_file()  # what was recorded is kept
+    assert list(tmp.glob(f"{PREFIX}*")) == []
+
+
+@needs_fmus
+def test_an_interrupted_run_leaves_nothing_and_a_killed_ones_folders_are_swept(
+    tmp_path: Path,
+) -> None:
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    # Ctrl-C in the middle of a run
+    proc = _cli(tmp, "run", DEMO, "--fmu-dir", BUILT, "--out", tmp_path / "o", wait=False)
+    deadline = time.monotonic() + 120
+    while not list(tmp.glob(f"{PREFIX}*")) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert list(tmp.glob(f"{PREFIX}*")), "the FMUs were never unpacked"
+    time.sleep(0.5)
+    proc.send_signal(signal.SIGINT)
+    proc.communicate(timeout=120)
+    assert list(tmp.glob(f"{PREFIX}*")) == []
+    # SIGKILL: nothing can clean up; the next process that unpacks an FMU does
+    proc = _cli(tmp, "run", DEMO, "--fmu-dir", BUILT, "--out", tmp_path / "o", wait=False)
+    deadline = time.monotonic() + 120
+    while not list(tmp.glob(f"{PREFIX}*")) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    time.sleep(0.5)
+    proc.kill()
+    proc.communicate(timeout=60)
+    left = list(tmp.glob(f"{PREFIX}{proc.pid}_*"))
+    assert left, "expected the killed run's folders"
+    res = _cli(tmp, "check", DEMO, "--fmu-dir", BUILT)
+    assert res.returncode == 0, res.stderr
+    assert list(tmp.glob(f"{PREFIX}*")) == []
+
+
+@pytest.mark.slow
+@needs_fmus
+def test_a_thousand_runs_with_fmus_keep_memory_and_time_per_run_flat() -> None:
+    """Acceptance 4 of issue 14: 1000 consecutive runs of the demo with FMUs in one process.
+
+    Resident memory grows by less than 20 MiB, and the last 100 runs take no more than
+    1.1 times the first 100 (the median run of each hundred, which a busy machine's
+    bursts move less than the sum; both are printed).
+    """
+    cosim.run(DEMO, fmu_dir=BUILT)  # imports, caches
+    maps, rss = mapped_libraries(), resident_mib()
+    times = []
+    for _ in range(1000):
+        start = time.perf_counter()
+        cosim.run(DEMO, fmu_dir=BUILT)
+        times.append(time.perf_counter() - start)
+    grown = resident_mib() - rss
+    first, last = sorted(times[:100]), sorted(times[-100:])
+    ratio = last[50] / first[50]
+    print(
+        f"RSS +{grown:.1f} MiB; median run {first[50]:.3f} s -> {last[50]:.3f} s "
+        f"(ratio {ratio:.3f}); sums {sum(times[:100]):.1f} s -> {sum(times[-100:]):.1f} s"
+    )
+    assert mapped_libraries() == maps
+    assert grown < 20.0
+    assert ratio <= 1.1
