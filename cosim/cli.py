@@ -48,6 +48,62 @@ def _check_roles(scenario, master) -> None:  # noqa: ANN001  (Scenario, Master)
         raise
 
 
+def _output_folder(path: Path, option: str) -> None:
+    """Refuse, before anything runs, an output folder that names an existing file (or lies
+    under one): the results would be lost after the run."""
+    for p in (path, *path.parents):
+        if p.exists() and not p.is_dir():
+            what = "is" if p == path else f"is under '{p}', which is"
+            raise UserError(f"{option} '{path}' {what} an existing file; give a folder")
+
+
+def _stop_override(scenario, stop: str | None) -> dict:  # noqa: ANN001  (a Scenario)
+    """``--stop`` read and checked as ``--stop`` (not as ``master.stop``)."""
+    from cosim.errors import ScenarioError
+    from cosim.scenario import parse_seconds
+
+    if stop is None:
+        return {}
+    value = parse_seconds(stop, str(scenario.path), "--stop")
+    try:
+        scenario.master_settings(stop=value)
+    except ScenarioError as exc:
+        if exc.key != "master.stop":
+            raise
+        message = exc.message.replace("master.stop", "--stop")
+        raise ScenarioError(message, file=exc.file, key="--stop") from None
+    return {"stop": value}
+
+
+def _check_requirements(scenario, master) -> int:  # noqa: ANN001  (Scenario, Master)
+    """Check the ``[campaign]`` and ``[[requirements]]`` tables as ``verify`` reads them.
+
+    Returns the number of requirements (0 when the scenario has none).
+    """
+    if "requirements" not in scenario.raw and "campaign" not in scenario.raw:
+        return 0
+    from cosim.verify.campaign import parse_campaign
+    from cosim.verify.requirements import check_windows, load_requirements
+
+    settings = parse_campaign(scenario)
+    tables = scenario.raw.get("requirements", [])
+    system = master.system
+    outputs = [
+        f"{b}.{v.name}"
+        for b, h in system.blocks.items()
+        for v in h.by_causality("output")
+        if v.type == "Real"
+    ]
+    units: dict = {"time": "s"}
+    for b, v in master.record:
+        var = system.blocks[b].variables[v]
+        units[f"{b}.{v}"] = var.conversion_unit
+    file = str(scenario.path)
+    reqs = load_requirements(tables, units, file, outputs, on_failure=settings.on_failure)
+    check_windows(reqs, master.settings.start, master.settings.stop, file)
+    return len(reqs)
+
+
 class _Command(click.Command):
     """Every command exits 3 on a usage error (``verify`` uses 1 and 2 for verdicts)."""
 
@@ -92,8 +148,9 @@ def run(scenario: Path, out: Path, fmu_dir: Path | None, stop: str | None, plot:
     from cosim.scenario import build_master, load_scenario
 
     try:
+        _output_folder(out, "--out")
         sc = load_scenario(scenario)
-        master = build_master(sc, fmu_dir=fmu_dir, stop=stop)
+        master = build_master(sc, fmu_dir=fmu_dir, **_stop_override(sc, stop))
         system = master.system
         _check_roles(sc, master)
         n_blocks = len(system.blocks)
@@ -142,13 +199,16 @@ def check(scenario: Path, fmu_dir: Path | None) -> None:
         _check_roles(sc, master)
         try:
             master.warn_loops()
+            n_reqs = _check_requirements(sc, master)
         finally:
             master.terminate()
     except UserError as exc:
         _fail(exc)
+    reqs = f", {n_reqs} requirement(s)" if n_reqs else ""
     click.echo(
         f"{scenario}: OK - {len(system.blocks)} blocks, {len(system.connections)} scalar "
-        f"connections, {master.settings.n_steps} steps; stepping order: {' -> '.join(master.order)}"
+        f"connections, {master.settings.n_steps} steps{reqs}; stepping order: "
+        f"{' -> '.join(master.order)}"
     )
     _echo_sources(sc)
 
@@ -255,6 +315,7 @@ def verify(
     try:
         from cosim.scenario import load_scenario
 
+        _output_folder(report_dir, "--report")
         sc = load_scenario(scenario)
         if fmu_dir is not None:
             sc.use_fmus(fmu_dir)

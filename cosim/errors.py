@@ -32,6 +32,29 @@ def did_you_mean(name: str, known: Iterable[str]) -> str:
     return f" Did you mean '{hint[0]}'?" if hint else ""
 
 
+def shorten(value: Any, limit: int = 60) -> str:
+    """A user's value for a message, cut when long (with its length).
+
+    Parameters
+    ----------
+    value : Any
+        What the user wrote: a string (quoted) or another value (its ``repr``).
+    limit : int
+        Most characters shown.
+
+    Returns
+    -------
+    str
+        ``"'deg/h'"``, ``"[1, 2]"``, or ``"'deg*deg*de...' (100000 characters)"`` when
+        longer than ``limit``.
+    """
+    text = value if isinstance(value, str) else repr(value)
+    q = "'" if isinstance(value, str) else ""
+    if len(text) <= limit:
+        return f"{q}{text}{q}"
+    return f"{q}{text[:limit]}...{q} ({len(text)} characters)"
+
+
 class UserError(Exception):
     """Base of every error caused by the user's input (scenario, FMU, command line)."""
 

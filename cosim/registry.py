@@ -23,9 +23,13 @@ the import error. The core never imports the packages above it (alignment, verif
 
 from __future__ import annotations
 
+import functools
+import os
+import sys
 from dataclasses import dataclass
 from importlib import metadata
 from pathlib import Path
+from typing import Any
 
 import models
 from cosim.errors import ScenarioError, did_you_mean
@@ -67,8 +71,14 @@ def truth_models() -> dict[str, type[Block]]:
     Returns
     -------
     dict
-        ``{class name: class}``, sorted by name: exactly what ``make fmus`` packs.
+        ``{class name: class}``, sorted by name: exactly what ``make fmus`` packs (found
+        once per process: the package does not change while it runs).
     """
+    return dict(_truth_models())
+
+
+@functools.cache
+def _truth_models() -> dict[str, type[Block]]:
     return models.registry()
 
 
@@ -81,6 +91,29 @@ def entry_points() -> dict[str, list[Registration]]:
         ``{name: [registration, ...]}``, sorted by name; a list holds more than one
         registration when several distributions claim the same name.
     """
+    state = _path_state()
+    if _scanned.get("state") != state:
+        _scanned.update(state=state, found=_scan())
+    return {name: list(regs) for name, regs in _scanned["found"].items()}
+
+
+#: The last scan of the entry points and the state of ``sys.path`` it was made in.
+_scanned: dict[str, Any] = {}
+
+
+def _path_state() -> tuple[tuple[str, int | None], ...]:
+    """Every ``sys.path`` folder with its modification time: a distribution installed or
+    removed changes it, so the entry points are scanned again only then."""
+    out = []
+    for entry in sys.path:
+        try:
+            out.append((entry, os.stat(entry or ".").st_mtime_ns))
+        except OSError:
+            out.append((entry, None))
+    return tuple(out)
+
+
+def _scan() -> dict[str, list[Registration]]:
     found: dict[str, list[Registration]] = {}
     for ep in metadata.entry_points(group=GROUP):
         dist = ep.dist

@@ -37,18 +37,21 @@ from __future__ import annotations
 import dataclasses
 import hashlib
 import importlib
+import math
 import re
+import sys
 import tomllib
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cosim import provenance, registry
+from cosim import limits, provenance, registry
 from cosim.blocks import REAL, BlockHost, FmuHost, InProcessHost, Variable
-from cosim.errors import FmuError, ScenarioError, UnitError, did_you_mean
+from cosim.errors import FmuError, ScenarioError, UnitError, did_you_mean, shorten
 from cosim.master import GAUSS_SEIDEL, Connection, Master, MasterSettings, System
 from cosim.units import conversion_factor, resolve_unit, to_unit
+from models.block import Block
 
 TOP_KEYS = {"scenario", "master", "blocks", "connections", "output", "requirements", "campaign"}
 BLOCK_KEYS = {
@@ -62,6 +65,7 @@ BLOCK_KEYS = {
     "role",
     "unconnected_ok",
 }
+SCENARIO_KEYS = {"name", "description"}
 MASTER_KEYS = {"step", "stop", "start", "coupling"}
 SETTING_KEYS = {"step", "stop", "start", "coupling", "record_every"}
 OUTPUT_KEYS = {"variables", "every"}
@@ -288,15 +292,44 @@ class Scenario:
             except ScenarioError as exc:
                 raise self.error(exc.message, key=f"{key}.model") from exc
             return InProcessHost(spec.name, cls)
-        module_name, _, class_name = spec.source.partition(":")
+        return InProcessHost(spec.name, self._user_class(spec.source, f"{key}.class"))
+
+    def _user_class(self, source: str, key: str) -> type:
+        """The class of ``class = "module:Class"``: a Block subclass, found on ``sys.path``
+        or in a module beside the scenario file."""
+        module_name, colon, class_name = source.partition(":")
+        if not colon or not module_name or not class_name:
+            raise self.error(f"expected 'package.module:ClassName', got {shorten(source)}", key=key)
+        folder = str(self.path.resolve().parent)
+        added = folder not in sys.path
+        if added:  # a module beside the scenario is importable (sys.path comes first)
+            sys.path.append(folder)
         try:
-            cls = getattr(importlib.import_module(module_name), class_name)
+            obj = getattr(importlib.import_module(module_name), class_name)
+        except ModuleNotFoundError as exc:
+            raise self.error(
+                f"cannot import '{source}' ({exc}); write it as 'package.module:ClassName' "
+                f"with the module importable: installed, on PYTHONPATH, or a file "
+                f"{module_name.split('.')[0]}.py beside the scenario (in {folder})",
+                key=key,
+            ) from exc
         except (ImportError, AttributeError, ValueError) as exc:
             raise self.error(
-                f"cannot import '{spec.source}' ({exc}); write it as 'package.module:ClassName'",
-                key=f"{key}.class",
+                f"cannot import '{source}' ({type(exc).__name__}: {exc}); write it as "
+                f"'package.module:ClassName'",
+                key=key,
             ) from exc
-        return InProcessHost(spec.name, cls)
+        finally:
+            if added and folder in sys.path:
+                sys.path.remove(folder)
+        if not (isinstance(obj, type) and issubclass(obj, Block)):
+            what = type(obj).__name__ if not isinstance(obj, type) else f"class {obj.__name__}"
+            raise self.error(
+                f"'{source}' is a {what}, not a block; class = 'module:Class' must name a "
+                f"subclass of models.block.Block",
+                key=key,
+            )
+        return obj
 
     def _parameters(self, spec: BlockSpec, host: BlockHost) -> dict[str, Any]:
         out: dict[str, Any] = {}
@@ -343,7 +376,13 @@ class Scenario:
         t = var.type
         if t in (REAL, "Float32"):
             if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise self.error(f"expected a number for '{var.name}', got {value!r}", key=key)
+                raise self.error(
+                    f"expected a number for '{var.name}', got {shorten(value)}", key=key
+                )
+            if not math.isfinite(value):
+                raise self.error(
+                    f"parameter '{var.name}' is {value}; expected a finite number", key=key
+                )
             return float(value)
         if t in INTEGER_RANGES:
             lo, hi = INTEGER_RANGES[t]
@@ -472,12 +511,19 @@ class Scenario:
 
         Returns block -> {input: start value} of every input left on its start value.
         """
-        wired = {(c.dst_block, c.dst_var) for c in connections}
+        wired = {(c.dst_block, c.dst_var): c for c in connections}
         unconnected: dict[str, dict[str, Any]] = {}
         for name, host in hosts.items():
             ok = set(self.blocks[name].unconnected_ok)
             left: list[Variable] = []
             for v in host.by_causality("input"):
+                if (name, v.name) in wired and v.name in parameters[name]:
+                    raise self.error(
+                        f"input '{name}.{v.name}' is connected ({wired[(name, v.name)]}) and "
+                        f"also given a value under blocks.{name}.parameters, which the "
+                        f"connection would override; remove one of them",
+                        key=f"blocks.{name}.parameters.{v.name.split('[', 1)[0]}",
+                    )
                 if (name, v.name) in wired or v.name in parameters[name]:
                     continue
                 if v.start is None:
@@ -647,7 +693,15 @@ def parse_seconds(value: Any, file: str, key: str) -> float:
     except UnitError as exc:
         raise ScenarioError(str(exc), file=file, key=key) from exc
     if isinstance(v, (list, bool)):
-        raise ScenarioError(f"expected a time such as '10 ms', got {value!r}", file=file, key=key)
+        raise ScenarioError(
+            f"expected a time such as '10 ms', got {shorten(value)}", file=file, key=key
+        )
+    if not math.isfinite(v):
+        raise ScenarioError(
+            f"expected a finite time such as '60 s', got {shorten(value)}",
+            file=file,
+            key=key,
+        )
     return float(v)
 
 
@@ -672,9 +726,28 @@ def load_scenario(path: str | Path) -> Scenario:
     f = str(path)
     if not path.is_file():
         raise ScenarioError("file not found; give the path of a scenario .toml file", file=f)
+    size = path.stat().st_size
+    if size > limits.MAX_FILE_BYTES:
+        raise ScenarioError(
+            f"the file is {size} bytes, more than the limit of {limits.MAX_FILE_BYTES} bytes for a "
+            f"scenario",
+            file=f,
+        )
     data = path.read_bytes()
     try:
-        doc = tomllib.loads(data.decode("utf-8"))
+        text = data.decode("utf-8")
+        depth, line = limits.nesting_depth(text)
+        if depth > limits.MAX_DEPTH:
+            raise ScenarioError(
+                f"arrays and inline tables nest {depth} levels deep (from line {line}), more "
+                f"than the limit of {limits.MAX_DEPTH}",
+                file=f,
+            )
+        doc = tomllib.loads(text)
+    except RecursionError:  # pragma: no cover - nesting_depth refuses such files first
+        raise ScenarioError(
+            f"nested too deep to parse (the limit is {limits.MAX_DEPTH} levels)", file=f
+        ) from None
     except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
         dup = _DUPLICATE.search(str(exc))
         if dup:
@@ -685,8 +758,16 @@ def load_scenario(path: str | Path) -> Scenario:
                 key=f"blocks.{dup.group(1)}",
             ) from exc
         raise ScenarioError(f"not valid TOML: {exc}", file=f) from exc
+    limits.check_document(doc, f)
     _check_keys(doc, TOP_KEYS, "the top level", f)
     head = doc.get("scenario", {})
+    if not isinstance(head, dict):
+        raise ScenarioError(
+            f"expected a table such as [scenario] name = 'demo', got {shorten(head)}",
+            file=f,
+            key="scenario",
+        )
+    _check_keys(head, SCENARIO_KEYS, "scenario", f)
     master = doc.get("master")
     if not isinstance(master, dict):
         raise ScenarioError(
@@ -716,6 +797,12 @@ def load_scenario(path: str | Path) -> Scenario:
     if not isinstance(blocks_raw, dict) or not blocks_raw:
         raise ScenarioError(
             "no blocks; add at least one [blocks.<name>] table with model = '...' or fmu = '...'",
+            file=f,
+            key="blocks",
+        )
+    if len(blocks_raw) > limits.MAX_BLOCKS:
+        raise ScenarioError(
+            f"{len(blocks_raw)} blocks, more than the limit of {limits.MAX_BLOCKS}",
             file=f,
             key="blocks",
         )
@@ -781,6 +868,12 @@ def load_scenario(path: str | Path) -> Scenario:
     if not isinstance(connections, list):
         raise ScenarioError(
             "expected a list of strings like 'a.x -> b.u'", file=f, key="connections"
+        )
+    if len(connections) > limits.MAX_CONNECTIONS:
+        raise ScenarioError(
+            f"{len(connections)} connections, more than the limit of {limits.MAX_CONNECTIONS}",
+            file=f,
+            key="connections",
         )
     outputs = output.get("variables")
     if outputs is not None and not isinstance(outputs, list):

@@ -43,7 +43,7 @@ from typing import Any
 import numpy as np
 import pint
 
-from cosim.errors import UnitError
+from cosim.errors import UnitError, shorten
 from models.constants import G0, PPM
 
 _REG = pint.UnitRegistry()
@@ -55,7 +55,7 @@ _REG.define(f"nav_ppm = {PPM!r}")
 _TOKENS = {"g": "nav_g", "mg": "nav_mg", "ug": "nav_ug", "µg": "nav_ug", "ppm": "nav_ppm"}
 _WORD = re.compile(r"(?<![\w.])(µg|ug|mg|g|ppm)(?![\w(])")
 _POWER = re.compile(r"(?<=[A-Za-z])(\d+)\b")
-_SQRT = re.compile(r"sqrt\(([^()]*)\)")
+_PAREN = re.compile(r"(?<![\w.])sqrt\s*\(|[()]")
 
 
 @dataclass(frozen=True)
@@ -120,13 +120,35 @@ FMI_BASE_UNITS = {
 _SYMBOL = {dim: symbol for symbol, dim in FMI_BASE_UNITS.items()}
 
 
+#: The longest unit string read (characters); a longer one is refused unread.
+MAX_UNIT_CHARS = 200
+
+
+def _sqrt_powers(s: str) -> str:
+    """``sqrt(X)`` -> ``(X)**0.5`` for every (nested) sqrt, in one pass over the text."""
+    out: list[str] = []
+    opened: list[bool] = []  # per open parenthesis: was it a sqrt(
+    i = 0
+    for m in _PAREN.finditer(s):
+        out.append(s[i : m.start()])
+        i = m.end()
+        token = m.group()
+        if token == ")":
+            out.append(")**0.5" if opened and opened.pop() else ")")
+        else:
+            opened.append(token != "(")
+            out.append("(")
+    out.append(s[i:])
+    return "".join(out)
+
+
 def _normalise(text: str) -> str:
     s = text.strip()
     if s in ("", "1", "-"):
         return "dimensionless"
     s = s.replace("·", "*").replace("^", "**")
-    while _SQRT.search(s):
-        s = _SQRT.sub(r"(\1)**0.5", s)
+    if "sqrt" in s:
+        s = _sqrt_powers(s)
     s = _WORD.sub(lambda m: _TOKENS[m.group(1)], s)
     s = _POWER.sub(r"**\1", s)
     return s
@@ -150,13 +172,17 @@ def parse_unit(text: str) -> Unit:
     UnitError
         If the unit is not known.
     """
+    if len(text) > MAX_UNIT_CHARS:
+        raise UnitError(
+            f"unit {shorten(text)} is longer than the limit of {MAX_UNIT_CHARS} characters"
+        )
     try:
         normalised = _normalise(text)
         q = _REG.Quantity(1.0, normalised).to_base_units()
         zero = float(_REG.Quantity(0.0, normalised).to_base_units().magnitude)
     except Exception as exc:  # pint raises several unrelated types
         raise UnitError(
-            f"unknown unit '{text}' (examples of valid units: rad, deg, arcmin, deg/h, "
+            f"unknown unit {shorten(text)} (examples of valid units: rad, deg, arcmin, deg/h, "
             f"deg/sqrt(h), ug, ug/sqrt(Hz), m/s2, s, ms)"
         ) from exc
     dims = dict(q.dimensionality)
@@ -313,7 +339,7 @@ def name_disagreement(unit: Unit) -> str:
     )
 
 
-_QUANTITY = re.compile(r"^\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(.*?)\s*$")
+_NUMBER = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)")
 
 
 def to_unit(value: Any, unit: str | Unit) -> float | int | bool | list[float]:
@@ -347,16 +373,31 @@ def to_unit(value: Any, unit: str | Unit) -> float | int | bool | list[float]:
             )
         inner = value["value"]
         factor = conversion_factor(str(value["unit"]), unit)
+        items = inner if isinstance(inner, list) else [inner]
+        for x in items:
+            if isinstance(x, bool) or not isinstance(x, (int, float)):
+                raise UnitError(
+                    f"expected the 'value' of a {{value, unit}} table to be a number or a "
+                    f"flat list of numbers, got {shorten(inner)}"
+                )
         if isinstance(inner, list):
             return [float(x) * factor for x in inner]
         return float(inner) * factor
     if isinstance(value, list):
+        for v in value:
+            if isinstance(v, (list, dict)):
+                raise UnitError(
+                    f"expected a flat list of numbers or strings such as '1 deg', got a "
+                    f"nested {'list' if isinstance(v, list) else 'table'} {shorten(v)}"
+                )
         return [float(to_unit(v, unit)) for v in value]
     if isinstance(value, str):
-        m = _QUANTITY.match(value)
+        m = _NUMBER.match(value)
         if not m:
-            raise UnitError(f"expected a number with a unit such as '12.5 deg', got '{value}'")
-        number, written = float(m.group(1)), m.group(2)
+            raise UnitError(
+                f"expected a number with a unit such as '12.5 deg', got {shorten(value)}"
+            )
+        number, written = float(m.group(1)), value[m.end() :].strip()
         if not written:
             return number
         return number * conversion_factor(written, unit)

@@ -35,7 +35,7 @@ import numpy as np
 from cosim.errors import ScenarioError
 from cosim.scenario import Scenario, build_master, load_scenario
 from cosim.verify.records import RunRecord, read_records, save_record, write_metrics_table
-from cosim.verify.requirements import Requirement, Verdict, load_requirements
+from cosim.verify.requirements import Requirement, Verdict, check_windows, load_requirements
 from cosim.verify.seeds import SEED_RULE, Stratified, run_seeds, stratified_draws
 from cosim.verify.statistics import judge, overall_exit_code
 from cosim.verify.workers import CampaignError, Job, WorkerSpec, expand_parameters, run_jobs
@@ -393,6 +393,7 @@ def prepare(
                 key="requirements",
             )
         reqs = load_requirements(tables, units, str(sc.path), outs, on_failure=settings.on_failure)
+        check_windows(reqs, master.settings.start, master.settings.stop, str(sc.path))
     if settings.randomize is not None:
         for i, b in enumerate(settings.randomize):
             if b not in seeded:

@@ -468,6 +468,12 @@ def _parse_one(
     if start is not None and until is not None and until < start:
         raise err(f"'until' ({until:g} s) is before 'from' ({start:g} s)", "until")
     absolute = _bool(table, "absolute", True, err)
+    if criterion != "settling" and absolute and limit < 0:
+        raise err(
+            f"a bound on |e| must be >= 0, got {table['bound']!r} (|e| <= a negative bound is "
+            f"violated by every run); for a signed bound on e write absolute = false",
+            "bound",
+        )
 
     # -- statistic ------------------------------------------------------------
     stat_text = table.get("statistic", "max")
@@ -590,6 +596,46 @@ def _fraction(table: dict[str, Any], key: str, err) -> float:  # noqa: ANN001
 
 
 # --------------------------------------------------------------------------- one run
+def check_windows(
+    requirements: Sequence[Requirement], start: float, stop: float, file: str
+) -> None:
+    """Refuse a requirement whose time window lies outside the run, before anything runs.
+
+    Parameters
+    ----------
+    requirements : sequence of Requirement
+        As returned by :func:`load_requirements`.
+    start, stop : float
+        The run's start and stop times [s] (``master.start``, ``master.stop``).
+    file : str
+        The scenario file (for the message).
+
+    Raises
+    ------
+    ScenarioError
+        A ``from`` or ``at`` after the stop time, or an ``until`` before the start time,
+        naming the requirement's key.
+    """
+    for req in requirements:
+        where = f"requirements[{req.index}]"
+        for key, t in (("from", req.start), ("at", req.at)):
+            if t is not None and t > stop:
+                raise ScenarioError(
+                    f"requirement '{req.id}': '{key}' = {t:g} s is after the stop time "
+                    f"({stop:g} s), so no run can be judged; move it into the run or "
+                    f"lengthen master.stop",
+                    file=file,
+                    key=f"{where}.{key}",
+                )
+        if req.until is not None and req.until < start:
+            raise ScenarioError(
+                f"requirement '{req.id}': 'until' = {req.until:g} s is before the start time "
+                f"({start:g} s)",
+                file=file,
+                key=f"{where}.until",
+            )
+
+
 def error_signal(
     req: Requirement, result: RunResult
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
