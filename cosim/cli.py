@@ -480,14 +480,30 @@ def place(real_report: Path, campaign_report: Path, out: Path | None) -> None:
     show_default=True,
     help="The FMUs of the built-in models (built by `make fmus`).",
 )
-def export_ssp(scenario: Path, out: Path, fmu_dir: Path) -> None:
+@click.option(
+    "--exclude",
+    "exclude",
+    multiple=True,
+    help="Leave block BLOCK out (a Python block has no FMU); its connections are cut.",
+)
+def export_ssp(scenario: Path, out: Path, fmu_dir: Path, exclude: tuple[str, ...]) -> None:
     """Write SCENARIO's FMU blocks, connections and parameters as an SSP 1.0 archive OUT."""
     from cosim.interop.ssp import export_ssp as export
 
     try:
-        result = export(scenario, out, fmu_dir)
+        result = export(scenario, out, fmu_dir, exclude=list(exclude))
     except UserError as exc:
         _fail(exc)
+    for name in result.excluded:
+        cut = [
+            c
+            for c in result.cut
+            if name
+            in (c.split("->")[0].split(".")[0].strip(), c.split("->")[1].split(".")[0].strip())
+        ]
+        click.echo(f"left out: block {name} ({len(cut)} connection(s) cut: {'; '.join(cut)})")
+    for line in result.left_out:
+        click.echo(f"left out: {line}")
     click.echo(
         f"wrote {result.path}: {len(result.components)} components, {result.connections} "
         f"scalar connections, {result.parameters} parameter values"

@@ -170,5 +170,32 @@ def test_python_class_blocks_cannot_be_exported(tmp_path: Path, fmu_dir: Path) -
     scenario.write_text(
         '[master]\nstep = "10 ms"\nstop = "1 s"\n[blocks.bad]\nclass = "testblocks:Faulty"\n'
     )
-    with pytest.raises(SspError, match="block 'bad' is a Python class"):
+    with pytest.raises(SspError, match=r"block\(s\) bad \(testblocks:Faulty\) run in Python"):
         export_ssp(scenario, tmp_path / "s.ssp", fmu_dir)
+
+
+TRANSFER = Path(__file__).resolve().parents[1] / "scenarios" / "transfer_alignment.toml"
+
+
+def test_a_filter_block_is_named_and_excluded_with_its_cut_connections(
+    cli, tmp_path: Path, fmu_dir: Path
+) -> None:
+    res = cli("export-ssp", TRANSFER, tmp_path / "t.ssp", "--fmu-dir", fmu_dir)
+    assert res.code == 3 and "Traceback" not in res.err
+    assert "align (TransferAlignment) run in Python and have no FMU" in res.err
+    assert "--exclude align" in res.err and "make fmus" not in res.err
+    export = export_ssp(TRANSFER, tmp_path / "t.ssp", fmu_dir, exclude=["align"])
+    assert set(export.components) == {"ship", "flex", "lever", "imu", "master"}
+    assert export.cut[0] == "imu.dtheta_meas_b -> align.dtheta_s" and len(export.cut) == 8
+    ssd = read_ssd(str(tmp_path / "t.ssp"))  # validates against the SSP 1.0 schemas
+    assert {u.name for u in ssd.units} >= {"rad", "m/s", "rad/s"}
+    with zipfile.ZipFile(tmp_path / "t.ssp") as zf:
+        text = zf.read("SystemStructure.ssd").decode()
+    flat = "".join(line.strip() for line in text.splitlines())
+    assert '<ssc:Unit name="m/s2"><ssc:BaseUnit m="1" s="-2" /></ssc:Unit>' in flat
+    assert '<ssd:Connector name="f_s[1]" kind="output"><ssc:Real unit="m/s2" />' in flat
+    res = cli(
+        "export-ssp", TRANSFER, tmp_path / "t2.ssp", "--fmu-dir", fmu_dir, "--exclude", "align"
+    )
+    assert res.code == 0, res.err
+    assert "left out: block align (8 connection(s) cut" in res.out

@@ -28,7 +28,16 @@ validated against the SSP 1.0 schemas in the tests):
 SSP describes structure, not the master algorithm: libcosim runs the archive with its
 fixed-step Jacobi algorithm, which equals our master with ``coupling = "jacobi"``
 (tests/test_ssp.py). Built-in models are exported from the FMUs ``make fmus`` builds
-(``fmus/build/<Model>.fmu``); Python ``class = ...`` blocks cannot be exported.
+(``fmus/build/<Model>.fmu``); Python blocks (alignment filters, ``class = ...``) have no
+FMU: the export names them and ``exclude`` (``--exclude BLOCK``) leaves them out, with
+the connections that are cut listed.
+
+Units: every unit of a Real connector is defined once in ``ssd:Units`` (``ssc:Unit`` with
+its ``ssc:BaseUnit`` exponents and factor) and named by the connector (``ssc:Real
+unit="deg"``); a unit SSP cannot define (a non-integer exponent: ``deg/sqrt(h)``) is left
+off its connector and listed in :attr:`SspExport.left_out`. Enumeration connectors refer
+to their ``ssd:Enumerations`` type (items from the FMU); connectors of FMI 3 types that
+SSP 1.0 does not know (Float32, Int8..UInt64, Binary, Clock) are left out and listed.
 
 The prefixes ``ssd``, ``ssc``, ``ssv`` and ``osp`` are the ones the standard uses; keep
 them (libcosim's reader matches the prefixed element names).
@@ -44,9 +53,11 @@ from pathlib import Path
 from typing import Any
 from xml.etree import ElementTree as ET
 
+from cosim import registry
 from cosim.blocks import BlockHost
-from cosim.errors import UserError
+from cosim.errors import UnitError, UserError
 from cosim.scenario import Scenario, load_scenario
+from cosim.units import FMI_BASE_UNITS, Unit, resolve_unit
 
 SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
 SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
@@ -57,7 +68,23 @@ for _prefix, _uri in (("ssd", SSD), ("ssc", SSC), ("ssv", SSV), ("osp", OSP), ("
     ET.register_namespace(_prefix, _uri)
 
 DEFAULT_FMU_DIR = Path("fmus/build")
-_TYPES = ("Real", "Integer", "Boolean", "String")
+_TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration")
+#: pint dimension -> SSP BaseUnit attribute (the FMI ones).
+_SSP_BASE = {dim: attr for attr, dim in FMI_BASE_UNITS.items()}
+
+
+def _ssp_unit(unit: Unit) -> dict[str, str] | None:
+    """The ``ssc:BaseUnit`` attributes of a unit, or None when SSP cannot define it."""
+    attrs: dict[str, str] = {}
+    for dim, exp in unit.dimension:
+        if dim not in _SSP_BASE or not float(exp).is_integer():
+            return None
+        attrs[_SSP_BASE[dim]] = str(int(exp))
+    if unit.factor != 1.0:
+        attrs["factor"] = _number(unit.factor)
+    if unit.offset:
+        attrs["offset"] = _number(unit.offset)
+    return attrs
 
 
 class SspError(UserError):
@@ -80,6 +107,12 @@ class SspExport:
         Number of parameter values.
     fmu_names : dict
         Block name -> {scenario variable name -> FMU variable name} for renamed variables.
+    excluded : list of str
+        The blocks left out (``exclude``).
+    cut : list of str
+        The scalar connections to or from an excluded block (not in the archive).
+    left_out : list of str
+        What the archive does not carry, one line each with the reason.
     """
 
     path: Path
@@ -87,6 +120,9 @@ class SspExport:
     connections: int
     parameters: int
     fmu_names: dict[str, dict[str, str]] = field(default_factory=dict)
+    excluded: list[str] = field(default_factory=list)
+    cut: list[str] = field(default_factory=list)
+    left_out: list[str] = field(default_factory=list)
 
 
 def _q(namespace: str, tag: str) -> str:
@@ -124,6 +160,9 @@ def _component(
     resource: str,
     parameters: dict[str, Any],
     step_hint: float | None,
+    units: dict[str, dict[str, str] | None],
+    enums: dict[str, list[tuple[str, int]]],
+    left_out: list[str],
 ) -> None:
     comp = ET.SubElement(
         elements,
@@ -133,18 +172,43 @@ def _component(
         source=resource,
         implementation="CoSimulation",
     )
-    ports = [
-        v
-        for v in host.variables.values()
-        if v.causality in ("input", "output") and v.type in _TYPES
-    ]
+    ports = []
+    for v in host.variables.values():
+        if v.causality not in ("input", "output"):
+            continue
+        if v.type in _TYPES:
+            ports.append(v)
+        else:
+            left_out.append(
+                f"{name}.{v.own_name}: {v.type} {v.causality}, a type SSP 1.0 connectors do "
+                f"not have"
+            )
+    declared = _declared_types(host)
     if ports:
         connectors = ET.SubElement(comp, _q(SSD, "Connectors"))
         for v in ports:
             connector = ET.SubElement(
                 connectors, _q(SSD, "Connector"), name=v.own_name, kind=v.causality
             )
-            ET.SubElement(connector, _q(SSC, v.type))
+            kind = ET.SubElement(connector, _q(SSC, v.type))
+            if v.type == "Real" and v.unit not in ("", "1"):
+                if v.unit not in units:
+                    try:
+                        units[v.unit] = _ssp_unit(resolve_unit(v.conversion_unit))
+                    except UnitError:
+                        units[v.unit] = None
+                    if units[v.unit] is None:
+                        left_out.append(
+                            f"unit '{v.unit}' (of {name}.{v.own_name} and others): SSP unit "
+                            f"definitions have integer exponents; connectors in it carry "
+                            f"no unit"
+                        )
+                if units[v.unit] is not None:
+                    kind.set("unit", v.unit)
+            elif v.type == "Enumeration":
+                type_name, items = declared.get(v.own_name, (f"{name}_{v.own_name}", []))
+                enums.setdefault(type_name, items)
+                kind.set("name", type_name)
     if parameters:
         bindings = ET.SubElement(comp, _q(SSD, "ParameterBindings"))
         binding = ET.SubElement(bindings, _q(SSD, "ParameterBinding"))
@@ -159,10 +223,24 @@ def _component(
         _osp_annotation(comp, "StepSizeHint").set("value", _number(step_hint))
 
 
+def _declared_types(host: BlockHost) -> dict[str, tuple[str, list[tuple[str, int]]]]:
+    """FMU variable -> (its enumeration type name, [(item, value)]) from the FMU."""
+    md = getattr(host, "model_description", None)
+    out: dict[str, tuple[str, list[tuple[str, int]]]] = {}
+    if md is None:
+        return out
+    for v in md.modelVariables:
+        t = getattr(v, "declaredType", None)
+        if v.type == "Enumeration" and t is not None:
+            out[v.name] = (t.name, [(i.name, int(i.value)) for i in t.items])
+    return out
+
+
 def export_ssp(
     scenario: Scenario | str | Path,
     out: str | Path,
     fmu_dir: str | Path = DEFAULT_FMU_DIR,
+    exclude: tuple[str, ...] | list[str] = (),
 ) -> SspExport:
     """Write a scenario's FMU blocks, connections and parameters as an SSP 1.0 archive.
 
@@ -174,6 +252,9 @@ def export_ssp(
         The ``.ssp`` file to write (its folder is created; replaced if it exists).
     fmu_dir : str or Path
         Where the FMUs of built-in models are (``make fmus`` builds ``fmus/build``).
+    exclude : sequence of str
+        Blocks to leave out (Python blocks have no FMU); their connections are cut and
+        listed in :attr:`SspExport.cut`.
 
     Returns
     -------
@@ -182,24 +263,52 @@ def export_ssp(
     Raises
     ------
     SspError
-        A ``class = ...`` block, or a built-in model whose FMU is not in ``fmu_dir``.
+        A Python block not excluded (named, with the ``--exclude`` that exports the rest
+        and the connections it would cut), an unknown excluded block, or a built-in model
+        whose FMU is not in ``fmu_dir``.
     ScenarioError, FmuError
         The scenario itself is inconsistent (as ``ins-cosim check`` reports).
     """
     sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     fmu_dir = Path(fmu_dir)
+    unknown = [b for b in exclude if b not in sc.blocks]
+    if unknown:
+        raise SspError(
+            f"cannot exclude {', '.join(unknown)}: no such block; blocks: {', '.join(sc.blocks)}"
+        )
+    python = [
+        spec
+        for spec in sc.blocks.values()
+        if spec.name not in exclude
+        and (
+            spec.kind == "class"
+            or (spec.kind == "model" and not registry.is_truth_model(spec.source))
+        )
+    ]
+    if python:
+        names = [spec.name for spec in python]
+        cut = [c for c in sc.connections if _touches(c, names)]
+        raise SspError(
+            f"block(s) {', '.join(f'{s.name} ({s.source})' for s in python)} run in Python "
+            f"and have no FMU; SSP holds FMUs only. Export the rest with "
+            f"{' '.join(f'--exclude {n}' for n in names)} (cuts {len(cut)} connection(s): "
+            f"{'; '.join(cut)})"
+        )
+    if exclude:
+        sc = copy.deepcopy(sc)
+        sc.connections = [c for c in sc.connections if not _touches(c, exclude)]
+        sc.outputs = [o for o in sc.outputs or [] if str(o).split(".")[0] not in exclude] or None
+        for b in exclude:
+            del sc.blocks[b]
     for spec in sc.blocks.values():
-        if spec.kind == "class":
-            raise SspError(
-                f"block '{spec.name}' is a Python class ('{spec.source}'); SSP holds FMUs "
-                f"only: package it as an FMU and use fmu = '...'"
-            )
         if spec.kind == "model" and not (fmu_dir / f"{spec.source}.fmu").is_file():
             raise SspError(
                 f"block '{spec.name}' uses the built-in model '{spec.source}' but "
                 f"'{fmu_dir / (spec.source + '.fmu')}' does not exist; run `make fmus` "
                 f"(or give --fmu-dir)"
             )
+    original = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
+    cut = [c for c in original.connections if _touches(c, exclude)]
     sc = copy.deepcopy(sc)
     sc.use_fmus(fmu_dir)
     system, _meta = sc.build()
@@ -218,7 +327,15 @@ def export_ssp(
         for source, resource in sorted(summary.pop("files").items(), key=lambda kv: kv[1]):
             zf.write(source, resource)
     os.replace(partial, out)
-    return SspExport(path=out, **summary)
+    return SspExport(path=out, excluded=list(exclude), cut=cut, **summary)
+
+
+def _touches(connection: Any, blocks: Any) -> bool:
+    """Whether a connection string ``a.x -> b.u`` starts or ends at one of ``blocks``."""
+    if not isinstance(connection, str) or "->" not in connection:
+        return False
+    left, right = (part.strip().split(".", 1)[0] for part in connection.split("->", 1))
+    return left in blocks or right in blocks
 
 
 def _describe(sc: Scenario, system: Any) -> tuple[ET.Element, dict[str, Any]]:
@@ -237,6 +354,9 @@ def _describe(sc: Scenario, system: Any) -> tuple[ET.Element, dict[str, Any]]:
     components: dict[str, str] = {}
     renamed: dict[str, dict[str, str]] = {}
     n_parameters = 0
+    units: dict[str, dict[str, str] | None] = {}
+    enums: dict[str, list[tuple[str, int]]] = {}
+    left_out: list[str] = []
     for name, host in system.blocks.items():
         source = str(Path(sc.blocks[name].source).resolve())
         if source not in files:
@@ -249,7 +369,15 @@ def _describe(sc: Scenario, system: Any) -> tuple[ET.Element, dict[str, Any]]:
         n_parameters += len(params)
         rate = system.rates.get(name, 1)
         _component(
-            elements, name, host, files[source], params, rate * s.step if rate != 1 else None
+            elements,
+            name,
+            host,
+            files[source],
+            params,
+            rate * s.step if rate != 1 else None,
+            units,
+            enums,
+            left_out,
         )
         names = {v.name: v.fmu_name for v in host.variables.values() if v.fmu_name}
         if names:
@@ -272,6 +400,18 @@ def _describe(sc: Scenario, system: Any) -> tuple[ET.Element, dict[str, Any]]:
                 ET.SubElement(
                     link, _q(SSC, "LinearTransformation"), factor=_number(c.factor), offset="0"
                 )
+    if enums:
+        enum_el = ET.SubElement(root, _q(SSD, "Enumerations"))
+        for type_name, items in enums.items():
+            e = ET.SubElement(enum_el, _q(SSC, "Enumeration"), name=type_name)
+            for item, value in items:
+                ET.SubElement(e, _q(SSC, "Item"), name=item, value=str(value))
+    defined = {u: attrs for u, attrs in units.items() if attrs is not None}
+    if defined:
+        units_el = ET.SubElement(root, _q(SSD, "Units"))
+        for unit, attrs in defined.items():
+            u = ET.SubElement(units_el, _q(SSC, "Unit"), name=unit)
+            ET.SubElement(u, _q(SSC, "BaseUnit"), **attrs)
     experiment = ET.SubElement(
         root, _q(SSD, "DefaultExperiment"), startTime=_number(s.start), stopTime=_number(s.stop)
     )
@@ -292,5 +432,6 @@ def _describe(sc: Scenario, system: Any) -> tuple[ET.Element, dict[str, Any]]:
         "parameters": n_parameters,
         "fmu_names": renamed,
         "files": files,
+        "left_out": left_out,
     }
     return root, summary
