@@ -240,6 +240,7 @@ def fmus(fmu_dir: Path, build: bool) -> None:
         click.echo(f"error: no FMUs in {fmu_dir}; run `make fmus` first", err=True)
         sys.exit(3)
     bad = 0
+    python_fmus = []
     click.echo(f"{'FMU':<28} {'FMI':<4} {'GUID':<37} {'sha256':<13} problems")
     for f in files:
         try:
@@ -250,10 +251,18 @@ def fmus(fmu_dir: Path, build: bool) -> None:
             click.echo(f"{f.name:<28} unreadable: {exc}")
             continue
         bad += bool(problems)
+        if (md.generationTool or "").lower().startswith("pythonfmu"):
+            python_fmus.append(f.name)
         digest = file_sha256(f)[:12]
         click.echo(f"{f.name:<28} {md.fmiVersion:<4} {md.guid:<37} {digest:<13} {len(problems)}")
         for p in problems:
             click.echo(f"    {p}")
+    if python_fmus:
+        click.echo(
+            f"host requirements of {len(python_fmus)} FMU(s) made with PythonFMU (ours): the "
+            f"Python interpreter that loads them needs numpy, scipy and pythonfmu "
+            f"(pip install numpy scipy pythonfmu)"
+        )
     sys.exit(1 if bad else 0)
 
 

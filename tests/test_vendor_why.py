@@ -24,6 +24,8 @@ def test_fmus_lists_every_fmu_past_an_unreadable_one(cli, fmu_dir: Path, tmp_pat
     assert res.code == 1 and "Traceback" not in res.err
     assert re.search(r"^Broken\.fmu\s+unreadable: File is not a zip file", res.out, re.M)
     assert re.search(r"^GaussMarkov2\.fmu\s+2\.0", res.out, re.M)
+    # our FMUs say what the host needs
+    assert "needs numpy, scipy and pythonfmu (pip install numpy scipy pythonfmu)" in res.out
 
 
 def test_an_fmu_without_a_binary_for_this_machine_does_not_fill_the_role(tmp_path) -> None:
