@@ -156,22 +156,25 @@ def test_a_thousand_runs_with_fmus_keep_memory_and_time_per_run_flat() -> None:
     """Acceptance 4 of issue 14: 1000 consecutive runs of the demo with FMUs in one process.
 
     Resident memory grows by less than 20 MiB, and the last 100 runs take no more than
-    1.1 times the first 100 (the median run of each hundred, which a busy machine's
-    bursts move less than the sum; both are printed).
+    1.1 times the first 100: the CPU time of this process (fmpy and the FMUs run in it),
+    which other processes on a shared machine move far less than the wall time; the
+    median run of each hundred, and the sums (CPU and wall) are printed.
     """
     cosim.run(DEMO, fmu_dir=BUILT)  # imports, caches
     maps, rss = mapped_libraries(), resident_mib()
-    times = []
+    times, walls = [], []
     for _ in range(1000):
-        start = time.perf_counter()
+        start, wall = time.process_time(), time.perf_counter()
         cosim.run(DEMO, fmu_dir=BUILT)
-        times.append(time.perf_counter() - start)
+        times.append(time.process_time() - start)
+        walls.append(time.perf_counter() - wall)
     grown = resident_mib() - rss
     first, last = sorted(times[:100]), sorted(times[-100:])
     ratio = last[50] / first[50]
     print(
-        f"RSS +{grown:.1f} MiB; median run {first[50]:.3f} s -> {last[50]:.3f} s "
-        f"(ratio {ratio:.3f}); sums {sum(times[:100]):.1f} s -> {sum(times[-100:]):.1f} s"
+        f"RSS +{grown:.1f} MiB; median run {first[50]:.3f} s -> {last[50]:.3f} s CPU "
+        f"(ratio {ratio:.3f}); sums {sum(times[:100]):.1f} s -> {sum(times[-100:]):.1f} s CPU, "
+        f"{sum(walls[:100]):.1f} s -> {sum(walls[-100:]):.1f} s wall"
     )
     assert mapped_libraries() == maps
     assert grown < 20.0
