@@ -535,20 +535,44 @@ def export_ssp(scenario: Path, out: Path, fmu_dir: Path, exclude: tuple[str, ...
     is_flag=True,
     help="Write the tables into README.md between the PAPER markers.",
 )
+@click.option(
+    "--run",
+    "run_index",
+    type=int,
+    default=None,
+    help="Rerun only run I of --case (same --runs and --seed) and print its numbers.",
+)
+@click.option(
+    "--case",
+    default=None,
+    help="The case of --run (e.g. 'lever 20 flexure 10 ignored'; default: the main campaign).",
+)
 def reproduce(
-    paper: str, out: Path | None, runs: int | None, seed: int | None, update_readme: bool
+    paper: str,
+    out: Path | None,
+    runs: int | None,
+    seed: int | None,
+    update_readme: bool,
+    run_index: int | None,
+    case: str | None,
 ) -> None:
     """Reproduce a source paper (README, "References": seed 000, 001, 003): tables and plots.
 
-    Every run goes through the campaign engine of `verify`: run I of a campaign of PAPER
-    can be rerun alone with `ins-cosim verify SCENARIO --seed S --runs N --only-run I`
-    (README, "Verification and campaigns").
+    Every run goes through the campaign engine of `verify`: `--run I` (with `--case`)
+    reruns one run alone with the numbers it has in the whole reproduction; the main
+    campaigns are also `ins-cosim verify SCENARIO --seed S --runs N --only-run I`.
     """
     from cosim import reproduce as rep
 
     runs = rep.DEFAULTS[paper][0] if runs is None else runs
     seed = rep.DEFAULTS[paper][1] if seed is None else seed
 
+    if run_index is not None:
+        try:
+            click.echo(rep.rerun(paper, case, run_index, runs, seed))
+        except UserError as exc:
+            _fail(exc)
+        return
     out = out or Path("out") / "reproduce" / paper
     try:
         block = rep.reproduce(paper, out, runs, seed)

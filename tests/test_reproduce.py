@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pytest
 
+from cosim.errors import UserError
 from cosim.reproduce import DEFAULTS, PAPERS, publish_figures, reproduce, update_readme
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -60,3 +61,18 @@ def test_default_runs_and_seed_are_those_of_the_readme_block(paper: str) -> None
     block = m.group(1)
     assert f"{runs} runs" in block or f"runs={runs}" in block
     assert f"seed {seed}" in block or f"seed={seed}" in block
+
+
+def test_rerun_of_one_run_gives_its_numbers_in_the_whole_reproduction() -> None:
+    """``ins-cosim reproduce seed003 --case coarse --run 2``: run 2 of the coarse campaign."""
+    from cosim.reproduce import rerun, seed003
+
+    fs, fr = seed003.scenario_facts(seed003.STATIC), seed003.scenario_facts(seed003.ROTATING)
+    path, kw = seed003.cases(fs, fr)["coarse"]
+    whole = seed003.campaign(path, 3, 2024, workers=2, **kw)
+    text = rerun("seed003", "coarse", 2, 3, 2024)
+    err = ", ".join(f"{v:.6g}" for v in whole["align.rpy_err"][2, -1])
+    assert f"seeds {whole.seeds[2]}" in text and f"rpy_err = [{err}] arcmin" in text
+    for paper, case in (("seed000", "large 7 8"), ("seed001", "nope"), ("seed003", "nope")):
+        with pytest.raises(UserError, match="has no case"):
+            rerun(paper, case, 0, 3, 2024)

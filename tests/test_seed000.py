@@ -22,12 +22,14 @@ from cosim.reproduce.seed000 import (
     STREAMS,
     TABLE1,
     UG_SQRT_HZ,
-    NoiseSensitivity,
     campaign,
+    reproduce,
+)
+from cosim.reproduce.seed000_noise import (
+    NoiseSensitivity,
     convergence_bound,
     largest_density_within,
     noise_sensitivity,
-    reproduce,
 )
 from cosim.reproduce.seed000_report import sensitivity_markdown, sensitivity_plot
 from cosim.verify.campaign import CampaignError
@@ -322,3 +324,17 @@ def test_reproduce_writes_tables_and_plots(tmp_path: Path) -> None:
     assert (tmp_path / "seed000_level.png").stat().st_size > 10_000
     assert (tmp_path / "seed000_noise.png").stat().st_size > 10_000
     assert "![seed000_noise]" in text
+
+
+def test_verify_only_run_is_the_upf_run_of_the_main_campaign(tmp_path: Path) -> None:
+    """``ins-cosim verify scenarios/hrg_two_position.toml --seed 2024 --runs 30 --only-run 3``."""
+    from cosim.verify.campaign import run_campaign
+
+    camp = run_campaign(
+        seed000.SCENARIO, tmp_path, runs=30, seed=FIXED_SEED, workers=1, progress=False,
+        only_runs=[3],
+    )  # fmt: skip
+    (rec,) = camp.records
+    upf = campaign(30, FIXED_SEED, (1,), indices=[3])[1][0]
+    assert rec.metrics["SEED000-T1-AZ"].value == pytest.approx(abs(upf.azimuth_err), rel=1e-12)
+    assert rec.seeds == {b: s for b, s in run_seeds(FIXED_SEED, 3, STREAMS[:3]).items()}

@@ -8,7 +8,9 @@ which runs the paper's cases (campaigns included), writes its plots into ``out_d
 and returns a Markdown block (tables of the paper's figures next to ours, with the
 tolerance written next to each number). ``ins-cosim reproduce SEED --update-readme``
 writes that block into README.md between ``<!-- SEED:begin -->`` and ``<!-- SEED:end -->``,
-so the README's tables always come from the code.
+so the README's tables always come from the code. Each module also provides
+``rerun(case, index, runs, seed) -> str``: one run of one case alone, with the numbers
+it has in the whole reproduction (``ins-cosim reproduce SEED --case CASE --run I``).
 """
 
 from __future__ import annotations
@@ -53,6 +55,41 @@ def reproduce(name: str, out_dir: Path, runs: int, seed: int) -> str:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     return module.reproduce(out_dir, runs, seed)
+
+
+#: The case ``ins-cosim reproduce PAPER --run I`` reruns when no ``--case`` is given.
+DEFAULT_CASES = {"seed000": "main", "seed001": "campaign modelled", "seed003": "static"}
+
+
+def rerun(name: str, case: str | None, index: int, runs: int, seed: int) -> str:
+    """Rerun one run of one case of a reproduction alone and describe its numbers.
+
+    Every reproduction runs through the campaign engine, whose runs depend only on the
+    campaign seed, the run's index and its case: the run alone gives the numbers it has
+    in the whole reproduction.
+
+    Parameters
+    ----------
+    name : str
+        ``"seed000"``, ``"seed001"`` or ``"seed003"``.
+    case : str or None
+        The case (the module's ``rerun`` lists them); None: :data:`DEFAULT_CASES`.
+    index : int
+        Run number within the case.
+    runs : int
+        Runs of the reproduction (as for :func:`reproduce`).
+    seed : int
+        Campaign seed (as for :func:`reproduce`).
+
+    Returns
+    -------
+    str
+        A few lines: the case, the run, its per-run figures.
+    """
+    if name not in PAPERS:
+        raise ValueError(f"expected one of {', '.join(PAPERS)}, got {name!r}")
+    module = importlib.import_module(f"{__name__}.{name}")
+    return module.rerun(case or DEFAULT_CASES[name], int(index), int(runs), int(seed))
 
 
 def update_readme(readme: Path, name: str, block: str) -> None:

@@ -14,12 +14,11 @@ from cosim.reproduce.seed000 import (
     LEVEL_BAND,
     METHODS,
     TABLE1,
-    NoiseSensitivity,
     RunSummary,
-    convergence_bound,
     median,
     p95,
 )
+from cosim.reproduce.seed000_noise import NoiseSensitivity, convergence_bound
 
 
 def _fmt(x: float, digits: int = 1) -> str:
@@ -49,7 +48,7 @@ def sensitivity_plot(out_dir: Path, sens: NoiseSensitivity) -> str:
     out_dir : Path
         Folder of the PNG.
     sens : NoiseSensitivity
-        From :func:`cosim.reproduce.seed000.noise_sensitivity`.
+        From :func:`cosim.reproduce.seed000_noise.noise_sensitivity`.
 
     Returns
     -------
@@ -204,7 +203,7 @@ def sensitivity_markdown(sens: NoiseSensitivity) -> list[str]:
     Parameters
     ----------
     sens : NoiseSensitivity
-        From :func:`cosim.reproduce.seed000.noise_sensitivity`.
+        From :func:`cosim.reproduce.seed000_noise.noise_sensitivity`.
 
     Returns
     -------

@@ -567,6 +567,54 @@ def plan(runs: int) -> dict[str, Any]:
     }
 
 
+def rerun(case: str, index: int, runs: int, seed: int) -> str:
+    """Run ``index`` of one case of the reproduction alone, with its numbers.
+
+    Parameters
+    ----------
+    case : str
+        A case name of :func:`plan` (``"campaign modelled"``, ``"lever 20 flexure 10
+        ignored"``, ``"heading 120"``, ``"paper 2 modelled"``, ...).
+    index : int
+        Run number (below ``runs``; the paper's single cases have run 0 only).
+    runs : int
+        Runs of the reproduction's main campaigns (the stratified design's size).
+    seed : int
+        Campaign seed.
+
+    Returns
+    -------
+    str
+        The run's RMS error and RMS sigma from 30 s, final and largest error per axis
+        (arcmin), and its true accelerometer bias (m/s2).
+
+    Raises
+    ------
+    CampaignError
+        An unknown case, or a run outside the case's runs.
+    """
+    p = plan(runs)
+    named = {c.name: c for g in ("single", "camp", "flex", "lever", "head") for c in p[g].values()}
+    if case not in named:
+        raise CampaignError(f"seed001 has no case '{case}' (cases: {', '.join(named)})")
+    if not named[case].stratified and index != 0:
+        raise CampaignError(f"case '{case}' has run 0 only")
+    r = run_cases([(named[case], index)], seed)[case][0]
+
+    def axes(v: np.ndarray) -> str:
+        return ", ".join(f"{x:.6g}" for x in v)
+
+    return "\n".join(
+        [
+            f"seed001 '{case}', run {index} of {runs}, seed {seed} (roll, pitch, heading):",
+            f"  RMS error from {T_FROM:g} s: {axes(r.rms())} arcmin",
+            f"  RMS sigma from {T_FROM:g} s: {axes(r.sigma_rms())} arcmin",
+            f"  final error: {axes(r.final)} arcmin; largest: {axes(r.max_abs())} arcmin",
+            f"  true accelerometer bias: {axes(r.accel_bias)} m/s2",
+        ]
+    )
+
+
 def reproduce(out_dir: Path, runs: int, seed: int, workers: int | None = None) -> str:
     """Run every case of seed 001, write the plots, return the README block.
 

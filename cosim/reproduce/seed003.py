@@ -282,6 +282,36 @@ def campaign(
     return Histories.of(records)
 
 
+#: A perfect IMU: no turn-on errors, no noise (the coarse alignment's reference case).
+PERFECT_IMU = {k: 0.0 for k in ("gyro_bias_sigma", "gyro_arw", "accel_bias_sigma", "accel_vrw")}
+#: The campaigns of the reproduction (:func:`cases`).
+CASES = ("static", "rotating", "coarse", "perfect")
+
+
+def cases(fs: ScenarioFacts, fr: ScenarioFacts) -> dict[str, tuple[Path, dict[str, Any]]]:
+    """The reproduction's campaigns: scenario and :func:`campaign` options of each.
+
+    Parameters
+    ----------
+    fs, fr : ScenarioFacts
+        Facts of the static and of the rotating scenario.
+
+    Returns
+    -------
+    dict
+        Name (:data:`CASES`) -> (scenario file, keyword arguments of :func:`campaign`).
+        ``"perfect"`` is a campaign of one run.
+    """
+    coarse = {"parameters": {"align": {"init_mode": 0}}, "stop": fs.coarse_time}
+    perfect = {"parameters": {"align": {"init_mode": 0}, "imu": PERFECT_IMU}}
+    return {
+        "static": (STATIC, {"record_every": max(1, int(round(1.0 / fs.step)))}),
+        "rotating": (ROTATING, {"record_every": max(1, int(round(1.0 / fr.step)))}),
+        "coarse": (STATIC, {"columns": ["align.rpy_err", "align.phase"], **coarse}),
+        "perfect": (STATIC, {"columns": ["align.rpy_err"], **coarse, **perfect}),
+    }
+
+
 def run_all(runs: int, seed: int, workers: int | None = None) -> Seed003Run:
     """Run every case (see the module docstring).
 
@@ -302,34 +332,16 @@ def run_all(runs: int, seed: int, workers: int | None = None) -> Seed003Run:
         workers = max(1, min(8, os.cpu_count() or 1))
     start = time.perf_counter()
     fs, fr = scenario_facts(STATIC), scenario_facts(ROTATING)
-    kw: dict[str, Any] = {"columns": list(COLUMNS), "workers": workers}
-    every = max(1, int(round(1.0 / fs.step)))
-    static = campaign(STATIC, runs, seed, record_every=every, **kw)
-    rotating = campaign(ROTATING, runs, seed, record_every=max(1, int(round(1.0 / fr.step))), **kw)
-    coarse = campaign(
-        STATIC,
-        runs,
-        seed,
-        columns=["align.rpy_err", "align.phase"],
-        parameters={"align": {"init_mode": 0}},
-        stop=fs.coarse_time,
-        workers=workers,
-    )
-    perfect_imu = {k: 0.0 for k in ("gyro_bias_sigma", "gyro_arw", "accel_bias_sigma", "accel_vrw")}
-    perfect = campaign(
-        STATIC,
-        1,
-        seed,
-        columns=["align.rpy_err"],
-        parameters={"align": {"init_mode": 0}, "imu": perfect_imu},
-        stop=fs.coarse_time,
-    )
+    res = {
+        name: campaign(path, 1 if name == "perfect" else runs, seed, workers=workers, **kw)
+        for name, (path, kw) in cases(fs, fr).items()
+    }
     cov = analyses(fs, fr)
     return Seed003Run(
-        static=static,
-        rotating=rotating,
-        coarse=coarse,
-        coarse_perfect=perfect["align.rpy_err"][0, -1],
+        static=res["static"],
+        rotating=res["rotating"],
+        coarse=res["coarse"],
+        coarse_perfect=res["perfect"]["align.rpy_err"][0, -1],
         facts_static=fs,
         facts_rotating=fr,
         cov=cov,
@@ -337,6 +349,43 @@ def run_all(runs: int, seed: int, workers: int | None = None) -> Seed003Run:
         seed=seed,
         elapsed=time.perf_counter() - start,
     )
+
+
+def rerun(case: str, index: int, runs: int, seed: int) -> str:
+    """Run ``index`` of one campaign of the reproduction alone, with its numbers.
+
+    Parameters
+    ----------
+    case : str
+        One of :data:`CASES`.
+    index : int
+        Run number (``0 .. runs - 1``; ``perfect`` has run 0 only).
+    runs : int
+        Runs per campaign of the reproduction.
+    seed : int
+        Campaign seed.
+
+    Returns
+    -------
+    str
+        The run's seeds and its errors at the end and at 60, 300 and 600 s (arcmin).
+
+    Raises
+    ------
+    CampaignError
+        An unknown case, or a run outside the campaign.
+    """
+    if case not in CASES:
+        raise CampaignError(f"seed003 has no case '{case}' (cases: {', '.join(CASES)})")
+    path, kw = cases(scenario_facts(STATIC), scenario_facts(ROTATING))[case]
+    h = campaign(path, 1 if case == "perfect" else runs, seed, indices=[index], **kw)
+    lines = [f"seed003 {case}, run {index} of {runs}, campaign seed {seed}: seeds {h.seeds[0]}"]
+    for t in (60.0, 300.0, 600.0, float(h.time[-1])):
+        if t <= h.time[-1]:
+            i = h.index(t)
+            err = ", ".join(f"{v:.6g}" for v in h["align.rpy_err"][0, i])
+            lines.append(f"  t = {h.time[i]:g} s: rpy_err = [{err}] arcmin")
+    return "\n".join(lines)
 
 
 def analyses(fs: ScenarioFacts, fr: ScenarioFacts) -> dict[str, CovarianceHistory]:
