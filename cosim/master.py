@@ -34,9 +34,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from cosim.blocks import REAL, BlockCallError, BlockHost, BlockTerminated
+from cosim.blocks import BlockCallError, BlockHost, BlockTerminated
 from cosim.errors import ScenarioError, SimulationError
 from cosim.results import RunResult
+from cosim.variables import REAL
 
 GAUSS_SEIDEL = "gauss-seidel"
 JACOBI = "jacobi"

@@ -41,16 +41,24 @@ import math
 import re
 import sys
 import tomllib
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from cosim import limits, provenance, registry
-from cosim.blocks import REAL, BlockHost, FmuHost, InProcessHost, Variable
+from cosim.blocks import BlockHost, FmuHost, InProcessHost
 from cosim.errors import FmuError, ScenarioError, UnitError, did_you_mean, shorten
-from cosim.master import GAUSS_SEIDEL, Connection, Master, MasterSettings, System
-from cosim.units import conversion_factor, resolve_unit, to_unit
+from cosim.master import GAUSS_SEIDEL, Master, MasterSettings, System
+from cosim.units import to_unit
+from cosim.variables import REAL, Variable
+from cosim.wiring import (
+    base_names,
+    check_inputs,
+    expand,
+    fmu_name_note,
+    recorded_outputs,
+    resolve_connections,
+)
 from models.block import Block
 
 TOP_KEYS = {"scenario", "master", "blocks", "connections", "output", "requirements", "campaign"}
@@ -76,13 +84,8 @@ INTEGER_RANGES = {
     **{f"Int{n}": (-(2 ** (n - 1)), 2 ** (n - 1) - 1) for n in (8, 16, 32, 64)},
     **{f"UInt{n}": (0, 2**n - 1) for n in (8, 16, 32, 64)},
 }
-_LINK = re.compile(r"^\s*(\w+)\.([\w\[\]]+)\s*->\s*(\w+)\.([\w\[\]]+)\s*$")
 _NAME = re.compile(r"^[A-Za-z_]\w*$")
 _DUPLICATE = re.compile(r"Cannot (?:declare|overwrite) \('blocks', '(\w+)'\) twice \(at (line \d+)")
-
-
-class UnconnectedInputWarning(UserWarning):
-    """An input is neither connected nor set: the block runs on its start value."""
 
 
 @dataclass
@@ -246,9 +249,9 @@ class Scenario:
             parameters = {
                 name: self._parameters(spec, hosts[name]) for name, spec in self.blocks.items()
             }
-            connections = self._connections(hosts)
-            unconnected = self._check_inputs(hosts, parameters, connections)
-            record = self._record(hosts)
+            connections = resolve_connections(self, hosts)
+            unconnected = check_inputs(self, hosts, parameters, connections)
+            record = recorded_outputs(self, hosts)
         except Exception:
             for host in hosts.values():
                 try:
@@ -335,15 +338,15 @@ class Scenario:
         out: dict[str, Any] = {}
         for pname, raw in spec.parameters.items():
             key = f"blocks.{spec.name}.parameters.{pname}"
-            scalars = self._expand(host, pname)
+            scalars = expand(host, pname)
             if not scalars:
                 settable = [
                     v.name for v in host.variables.values() if v.causality in ("parameter", "input")
                 ]
-                tip = did_you_mean(pname, _bases(settable))
+                tip = did_you_mean(pname, base_names(settable))
                 raise self.error(
                     f"block '{spec.name}' has no variable '{pname}'.{tip} "
-                    f"Parameters and inputs: {', '.join(_bases(settable))}",
+                    f"Parameters and inputs: {', '.join(base_names(settable))}",
                     key=key,
                 )
             var0 = scalars[0]
@@ -358,7 +361,7 @@ class Scenario:
                 value = to_unit(raw, var0.conversion_unit) if real else raw
             except UnitError as exc:
                 raise self.error(
-                    f"{exc.message} (variable '{spec.name}.{pname}'{_own(var0)})", key=key
+                    f"{exc.message} (variable '{spec.name}.{pname}'{fmu_name_note(var0)})", key=key
                 ) from exc
             values = value if isinstance(value, list) else [value]
             if len(values) != len(scalars):
@@ -418,177 +421,6 @@ class Scenario:
             key=key,
         )
 
-    @staticmethod
-    def _expand(host: BlockHost, name: str) -> list[Variable]:
-        if name in host.variables:
-            return [host.variables[name]]
-        elements = []
-        i = 1
-        while f"{name}[{i}]" in host.variables:
-            elements.append(host.variables[f"{name}[{i}]"])
-            i += 1
-        return elements
-
-    # ------------------------------------------------------------ connections
-    def _connections(self, hosts: dict[str, BlockHost]) -> list[Connection]:
-        out: list[Connection] = []
-        seen: dict[str, str] = {}
-        for i, text in enumerate(self.connections):
-            key = f"connections[{i}]"
-            m = _LINK.match(text) if isinstance(text, str) else None
-            if not m:
-                raise self.error(f"expected 'block.output -> block.input', got {text!r}", key=key)
-            sb, sv, db, dv = m.groups()
-            src = self._endpoint(hosts, sb, sv, "output", key, text)
-            dst = self._endpoint(hosts, db, dv, "input", key, text)
-            if len(src) != len(dst):
-                raise self.error(
-                    f"'{text}': '{sb}.{sv}' has {len(src)} element(s) but '{db}.{dv}' has "
-                    f"{len(dst)}; connect elements explicitly, e.g. '{sb}.{sv}[1] -> {db}.{dv}'",
-                    key=key,
-                )
-            for a, b in zip(src, dst, strict=True):
-                try:
-                    factor = conversion_factor(a.conversion_unit, b.conversion_unit)
-                except UnitError as exc:
-                    raise self.error(
-                        f"'{text}': incompatible units: '{sb}.{a.name}'{_own(a)} is in "
-                        f"'{a.unit}' but '{db}.{b.name}'{_own(b)} expects '{b.unit}' "
-                        f"({_why(exc, a, b)})",
-                        key=key,
-                    ) from exc
-                sink = f"{db}.{b.name}"
-                if sink in seen:
-                    raise self.error(
-                        f"input '{sink}' is connected twice ({seen[sink]} and {text!r}); "
-                        f"an input takes one source",
-                        key=key,
-                    )
-                seen[sink] = repr(text)
-                out.append(Connection(sb, a.name, db, b.name, factor))
-        return out
-
-    def _endpoint(
-        self, hosts: dict[str, BlockHost], block: str, var: str, causality: str, key: str, text: str
-    ) -> list[Variable]:
-        if block not in hosts:
-            tip = did_you_mean(block, hosts)
-            raise self.error(
-                f"'{text}': unknown block '{block}'.{tip} Blocks: {', '.join(hosts)}", key=key
-            )
-        host = hosts[block]
-        scalars = self._expand(host, var)
-        if not scalars:
-            names = _bases([v.name for v in host.by_causality(causality)])
-            tip = did_you_mean(var, names)
-            raise self.error(
-                f"'{text}': block '{block}' has no variable '{var}'.{tip} "
-                f"Its {causality}s: {', '.join(names) or 'none'}",
-                key=key,
-            )
-        for v in scalars:
-            if v.causality != causality:
-                side = "left" if causality == "output" else "right"
-                raise self.error(
-                    f"'{text}': '{block}.{v.name}' is an {v.causality}, but the {side} side of "
-                    f"a connection must be an {causality}",
-                    key=key,
-                )
-            if v.type != REAL:
-                raise self.error(
-                    f"'{text}': '{block}.{v.name}' is {v.type}; connections carry Real values",
-                    key=key,
-                )
-        return scalars
-
-    def _check_inputs(
-        self,
-        hosts: dict[str, BlockHost],
-        parameters: dict[str, dict[str, Any]],
-        connections: list[Connection],
-    ) -> dict[str, dict[str, Any]]:
-        """Refuse inputs with no value; warn about those left on their start values.
-
-        Returns block -> {input: start value} of every input left on its start value.
-        """
-        wired = {(c.dst_block, c.dst_var): c for c in connections}
-        unconnected: dict[str, dict[str, Any]] = {}
-        for name, host in hosts.items():
-            ok = set(self.blocks[name].unconnected_ok)
-            left: list[Variable] = []
-            for v in host.by_causality("input"):
-                if (name, v.name) in wired and v.name in parameters[name]:
-                    raise self.error(
-                        f"input '{name}.{v.name}' is connected ({wired[(name, v.name)]}) and "
-                        f"also given a value under blocks.{name}.parameters, which the "
-                        f"connection would override; remove one of them",
-                        key=f"blocks.{name}.parameters.{v.name.split('[', 1)[0]}",
-                    )
-                if (name, v.name) in wired or v.name in parameters[name]:
-                    continue
-                if v.start is None:
-                    raise self.error(
-                        f"input '{name}.{v.name}' is not connected and has no start value; "
-                        f"connect it or give it a value under blocks.{name}.parameters",
-                        key=f"blocks.{name}",
-                    )
-                unconnected.setdefault(name, {})[v.name] = v.start
-                if v.name not in ok and v.name.split("[", 1)[0] not in ok:
-                    left.append(v)
-            if left:
-                bases = _bases([v.name for v in left])
-                values = ", ".join(f"{v.name} = {_plain(v.start)!r}" for v in left)
-                warnings.warn(
-                    f"{self.path}: block '{name}': input(s) not connected, running on their "
-                    f"start values: {values}; connect them, or state it with "
-                    f"[blocks.{name}] unconnected_ok = {bases!r}",
-                    UnconnectedInputWarning,
-                    stacklevel=2,
-                )
-        for name, spec in self.blocks.items():
-            unknown = [
-                n
-                for n in spec.unconnected_ok
-                if not any(
-                    v.name == n or v.name.split("[", 1)[0] == n
-                    for v in hosts[name].by_causality("input")
-                )
-            ]
-            if unknown:
-                inputs = _bases([v.name for v in hosts[name].by_causality("input")])
-                raise self.error(
-                    f"unconnected_ok names {', '.join(unknown)}, which are not inputs of block "
-                    f"'{name}'; its inputs: {', '.join(inputs) or 'none'}",
-                    key=f"blocks.{name}.unconnected_ok",
-                )
-        return unconnected
-
-    def _record(self, hosts: dict[str, BlockHost]) -> list[tuple[str, str]] | None:
-        if self.outputs is None:
-            return None
-        out: list[tuple[str, str]] = []
-        for i, item in enumerate(self.outputs):
-            key = f"output.variables[{i}]"
-            block, _, var = str(item).partition(".")
-            if block not in hosts:
-                raise self.error(
-                    f"unknown block '{block}' in {item!r}; blocks: {', '.join(hosts)}", key=key
-                )
-            host = hosts[block]
-            if not var:
-                out += [(block, v.name) for v in host.by_causality("output") if v.type != "Clock"]
-                continue
-            scalars = self._expand(host, var)
-            if not scalars or any(v.causality != "output" or v.type == "Clock" for v in scalars):
-                names = _bases([v.name for v in host.by_causality("output")])
-                raise self.error(
-                    f"'{item}' is not an output of block '{block}' that can be recorded; "
-                    f"outputs: {', '.join(names)}",
-                    key=key,
-                )
-            out += [(block, v.name) for v in scalars]
-        return out
-
     def _metadata(
         self, hosts: dict[str, BlockHost], parameters: dict[str, dict[str, Any]], system: System
     ) -> dict[str, Any]:
@@ -619,35 +451,6 @@ class Scenario:
             "units": units,
             "software": provenance.versions(),
         }
-
-
-def _why(exc: UnitError, a: Variable, b: Variable) -> str:
-    """Why two units do not convert: their SI dimensions, or the parser's message."""
-    try:
-        ua, ub = resolve_unit(a.conversion_unit), resolve_unit(b.conversion_unit)
-    except UnitError:
-        return exc.message
-    if ua.compatible(ub):
-        return exc.message
-    return f"dimensions {ua.si_text()} and {ub.si_text()}"
-
-
-def _plain(value: Any) -> Any:
-    """A numpy scalar as the Python number it holds (for messages)."""
-    return value.item() if hasattr(value, "item") else value
-
-
-def _own(var: Variable) -> str:
-    """`` (FMU variable 'x')`` for a renamed variable, else nothing (for messages)."""
-    return f" (FMU variable '{var.fmu_name}')" if var.fmu_name else ""
-
-
-def _bases(names: list[str]) -> list[str]:
-    """``['x', 'v[1]', 'v[2]']`` -> ``['x', 'v']`` (order kept)."""
-    seen: dict[str, None] = {}
-    for n in names:
-        seen.setdefault(n.split("[", 1)[0], None)
-    return list(seen)
 
 
 def _check_keys(table: dict[str, Any], allowed: set[str], where: str, file: str) -> None:

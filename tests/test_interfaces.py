@@ -11,9 +11,10 @@ from pathlib import Path
 import pytest
 
 import models
-from cosim.blocks import InProcessHost, Variable, apply_rename
+from cosim.blocks import InProcessHost
 from cosim.errors import FmuError
 from cosim.interop.interfaces import InterfaceError, available_roles, load_role, match_role
+from cosim.variables import Variable, apply_rename
 
 ROLES = ["accelerometer", "flexure", "hrg_gyro", "imu", "master_ins", "motion"]
 # every spec, including any added later, is checked against the models it names

@@ -14,10 +14,10 @@ from pathlib import Path
 import pytest
 from fmpy import read_model_description
 
-from cosim.blocks import fmu_variables
 from cosim.errors import ScenarioError, UnitError
 from cosim.scenario import load_scenario
 from cosim.units import conversion_factor, parse_unit, to_unit, unit_from_fmi
+from cosim.variables import fmu_variables
 
 DEG = math.pi / 180.0
 DEG_S = unit_from_fmi("deg/s", {"rad": 1, "s": -1}, factor=DEG)

@@ -20,10 +20,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cosim.blocks import Variable, apply_rename, fmu_variables
 from cosim.errors import FmuError
 from cosim.interop.interfaces import InterfaceError, RoleMatch, RoleSpec, load_role, match_role
 from cosim.units import name_disagreement
+from cosim.variables import Variable, apply_rename, fmu_variables
 
 
 @dataclass

@@ -52,9 +52,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cosim.blocks import Variable, apply_rename
 from cosim.errors import UnitError, UserError
 from cosim.units import conversion_factor
+from cosim.variables import Variable, apply_rename
 
 #: Folder of the role specs shipped with ins-cosim.
 ROLE_DIR = Path(__file__).resolve().parents[2] / "fmus" / "interfaces"
@@ -414,7 +414,7 @@ def match_role(
     Parameters
     ----------
     variables : mapping of str to Variable
-        The block's variables (``BlockHost.variables`` or :func:`cosim.blocks.fmu_variables`).
+        The block's variables (``BlockHost.variables`` or :func:`cosim.variables.fmu_variables`).
     role : RoleSpec
         The spec.
     rename : mapping of str to str, optional

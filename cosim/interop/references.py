@@ -17,8 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.blocks import REAL, BlockHost, InProcessHost
+from cosim.blocks import BlockHost, InProcessHost
 from cosim.results import RunResult
+from cosim.variables import REAL
 
 REFERENCE_DIR = Path(__file__).resolve().parents[2] / "models" / "reference"
 SEED = 1234
