@@ -11,9 +11,9 @@ from html.parser import HTMLParser
 import pytest
 
 from cosim.verify.campaign import run_campaign
-from cosim.verify.seeds import run_seeds
 from cosim.verify.report import write_reports
 from cosim.verify.requirements import SATISFIED, UNDECIDED, VIOLATED
+from cosim.verify.seeds import run_seeds
 
 SCENARIO = """
 [master]
