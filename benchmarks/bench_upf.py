@@ -1,6 +1,6 @@
 """Cost of the unscented particle filter of seed 000 against the EKF, measured side by side.
 
-Both filters of :mod:`cosim.alignment.hrg_two_position` process the same 200
+Both filters of :mod:`cosim.alignment.hrg_filters` process the same 200
 one-second velocity increments of one position (azimuth 100 deg, the paper's drifts,
 accelerometer noise 5 ug/sqrt(Hz)); we time the updates only. The judged figure is
 the ratio of the time per update, UPF with 200 particles over EKF: vectorising over
@@ -16,14 +16,9 @@ import time
 
 import numpy as np
 
-from cosim.alignment.hrg_two_position import (
-    ARCMIN,
-    DEG_H,
-    PositionFilter,
-    apparent_azimuth,
-    dv_coefficients,
-    predict_dv,
-)
+from cosim.alignment.hrg_filters import PositionFilter
+from cosim.alignment.hrg_model import apparent_azimuth, dv_coefficients, predict_dv
+from models.constants import ARCMIN, DEG_PER_HOUR
 from models.conventions import rot_z
 
 LAT = math.radians(45.0)
@@ -36,7 +31,7 @@ TARGET = 200.0
 def _data(seed: int) -> tuple[list[np.ndarray], float]:
     """Increments of one position and their noise variance."""
     a = math.radians(100.0)
-    eps = np.array([0.1, 0.2]) * DEG_H
+    eps = np.array([0.1, 0.2]) * DEG_PER_HOUR
     d = -(rot_z(a)[:2, :2] @ eps)
     psi, dn = apparent_azimuth(a, d[0], d[1], LAT)
     x = np.array([3 * ARCMIN, 3 * ARCMIN, dn, psi])
@@ -51,7 +46,7 @@ def _data(seed: int) -> tuple[list[np.ndarray], float]:
 
 def time_per_update(method: int, data: list[np.ndarray], r_var: float, repeat: int = 3) -> float:
     """Best-of-``repeat`` mean time of one filter update [s]."""
-    P0 = np.diag([(3 * ARCMIN) ** 2, (3 * ARCMIN) ** 2, (0.2 * DEG_H) ** 2, math.pi**2 / 3])
+    P0 = np.diag([(3 * ARCMIN) ** 2, (3 * ARCMIN) ** 2, (0.2 * DEG_PER_HOUR) ** 2, math.pi**2 / 3])
     best = math.inf
     for r in range(repeat):
         f = PositionFilter(

@@ -387,8 +387,8 @@ def check_fmu(
     With --scenario, also the scenario edits of the swap, each ready to paste.
     Exit code 0 when it fills the role (with the printed rename map), 1 when it does not.
     """
-    from cosim.interop.interfaces import check_fmu as check_role
-    from cosim.interop.interfaces import format_report, read_rename_file
+    from cosim.interop.fmu_check import check_fmu as check_role
+    from cosim.interop.fmu_check import format_report, read_rename_file
 
     try:
         rename = read_rename_file(rename_file) if rename_file is not None else None
