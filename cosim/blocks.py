@@ -342,6 +342,12 @@ class FmuHost(BlockHost):
     path : Path
         The ``.fmu`` file (FMI 2.0 or 3.0, co-simulation).
 
+    Attributes
+    ----------
+    unzip_dir : str
+        The folder the FMU is unpacked into, shared by every instance of the same FMU in
+        this process and removed with the last (:mod:`cosim.unpacked`).
+
     Raises
     ------
     FmuError
@@ -396,12 +402,12 @@ class FmuHost(BlockHost):
         for note in sorted(n for n in notes if n):
             warnings.warn(f"block '{name}': FMU '{path.name}': {note}", UnitWarning, stacklevel=2)
         self._state = "none"
-        self._unzipdir = unpacked_folders.acquire(path, self.sha256)
+        self.unzip_dir = unpacked_folders.acquire(path, self.sha256)
         try:
             self._instantiate()
             drop_repeated_path_entries()
         except Exception as exc:
-            unpacked_folders.release(self._unzipdir)
+            unpacked_folders.release(self.unzip_dir)
             if isinstance(exc, FmuError):
                 raise
             log = (
@@ -437,7 +443,7 @@ class FmuHost(BlockHost):
 
             fmu = FMU2Slave(
                 guid=md.guid,
-                unzipDirectory=self._unzipdir,
+                unzipDirectory=self.unzip_dir,
                 modelIdentifier=ident,
                 instanceName=self.name,
             )
@@ -472,7 +478,7 @@ class FmuHost(BlockHost):
 
             fmu = FMU3Slave(
                 guid=md.guid,
-                unzipDirectory=self._unzipdir,
+                unzipDirectory=self.unzip_dir,
                 modelIdentifier=ident,
                 instanceName=self.name,
             )
@@ -598,4 +604,4 @@ class FmuHost(BlockHost):
             try:
                 self.fmu.freeInstance()  # fmpy: fmi2FreeInstance, then the library unloaded
             finally:
-                unpacked_folders.release(self._unzipdir)
+                unpacked_folders.release(self.unzip_dir)

@@ -173,9 +173,22 @@ class System:
     record: list[tuple[str, str]] | None = None
 
 
-def _strongly_connected(nodes: list[str], edges: dict[str, set[str]]) -> list[list[str]]:
-    """Tarjan's algorithm, iterative; components in no particular order, each in
-    declaration order. O(nodes + edges log edges)."""
+def strongly_connected(nodes: list[str], edges: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected components of the block graph (Tarjan's algorithm, iterative).
+
+    Parameters
+    ----------
+    nodes : list of str
+        Block names in declaration order.
+    edges : dict
+        Block name -> names of the blocks it feeds.
+
+    Returns
+    -------
+    list of list of str
+        The components in no particular order, each in declaration order;
+        O(nodes + edges log edges).
+    """
     position = {n: i for i, n in enumerate(nodes)}
     index: dict[str, int] = {}
     low: dict[str, int] = {}
@@ -248,7 +261,7 @@ def schedule(
     edges: dict[str, set[str]] = {n: set() for n in names}
     for c in connections:
         edges[c.src_block].add(c.dst_block)
-    comps = _strongly_connected(names, edges)
+    comps = strongly_connected(names, edges)
     comp_of = {n: i for i, comp in enumerate(comps) for n in comp}
     indeg = {i: 0 for i in range(len(comps))}
     succ: dict[int, set[int]] = {i: set() for i in range(len(comps))}

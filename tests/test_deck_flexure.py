@@ -9,9 +9,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from models.constants import ARCMIN
 from models.deck_flexure import DeckFlexure, discretize_flexure
-
-ARCMIN = math.pi / 180.0 / 60.0
 
 
 def run(tau: tuple, sigma: tuple, h: float, steps: int, seed: int = 1) -> dict[str, np.ndarray]:

@@ -11,13 +11,11 @@ from scipy.linalg import expm
 
 from cosim.blocks import FmuHost, InProcessHost
 from cosim.interop.references import drive
+from models.constants import ARCMIN, DEG, OMEGA_IE
 from models.conventions import rot_z, rotvec_to_dcm
 from models.hrg_platform import HrgPlatform, indexing_profile, split_attitude
 
-OMEGA_IE = 7.292115e-5  # rad/s
-ARCMIN = math.pi / 180.0 / 60.0
 DEG_H = math.pi / 180.0 / 3600.0
-DEG = math.pi / 180.0
 
 
 def make(**params: object) -> HrgPlatform:

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from cosim.estimation.allan import allan_deviation
+from models.constants import OMEGA_IE
 from models.hrg_platform_gyro import HrgPlatformGyro
 
-OMEGA_IE = 7.292115e-5  # rad/s
 DEG_H = math.pi / 180.0 / 3600.0
 
 

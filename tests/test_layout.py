@@ -61,7 +61,6 @@ NOT_SOURCES |= {".ruff_cache"}
 
 # Other helpers are still splitting the long modules, making the private names public
 # and moving the paper references into the README; the integrator drops these marks.
-PENDING = "issue 13 in progress: other packages are still being cut"
 
 
 def python_files(*folders: str) -> list[Path]:
@@ -212,7 +211,6 @@ def test_the_checker_resolves_imports() -> None:
     assert module_name(ROOT / "tests" / "testblocks.py") == "testblocks"
 
 
-@pytest.mark.xfail(reason=PENDING, strict=False)
 def test_no_module_is_over_800_lines() -> None:
     too_long = []
     for path in python_files("cosim", "models", "benchmarks"):
@@ -319,7 +317,6 @@ def test_the_private_name_checker_finds_each_kind(tmp_path: Path) -> None:
     ]
 
 
-@pytest.mark.xfail(reason=PENDING, strict=False)
 def test_no_private_name_crosses_modules() -> None:
     modules = _project_modules()
     offenders = [
@@ -363,7 +360,6 @@ def test_the_outside_path_pattern() -> None:
     assert not OUTSIDE.search("tests/fixtures/fmi3_ramp and out/demo/results.csv")
 
 
-@pytest.mark.xfail(reason=PENDING, strict=False)
 def test_no_file_names_a_path_outside_the_repository() -> None:
     offenders = []
     for path in project_text_files():
@@ -484,7 +480,6 @@ CONSTANTS = {"DEG", "ARCMIN", "ARCSEC", "DEG_PER_HOUR", "DEG_PER_SQRT_HOUR", "G0
 CONSTANTS |= {"PPM", "OMEGA_IE", "GM", "E2", "GAMMA_E", "GAMMA_P", "K_SOMIGLIANA", "M_RATIO"}
 
 
-@pytest.mark.xfail(reason=PENDING, strict=False)
 def test_constants_come_from_models_constants_only() -> None:
     offenders = []
     for path in python_files(*PROJECT, "tests"):

@@ -11,10 +11,10 @@ from test_ship_motion import ARCSEC, Strapdown
 from test_ship_motion import make as make_ship
 
 from models import conventions as cv
+from models.constants import DEG
 from models.deck_flexure import DeckFlexure
 from models.lever_arm import LeverArm
 
-DEG = math.pi / 180.0
 MASTER = ("omega_ib_b", "omega_dot_b", "f_b", "dtheta_b", "dv_b", "rpy", "v_n")
 FLEX = ("theta", "theta_dot", "theta_ddot", "dtheta_flex", "dtheta_dot_flex")
 

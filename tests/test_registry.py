@@ -169,7 +169,6 @@ def test_a_users_filter_package_runs_in_a_scenario(site: Path, tmp_path: Path) -
     assert meta["kind"] == "model" and meta["source"] == "toy_filters.ToyFilter"
 
 
-@pytest.mark.xfail(reason="README section pending: the integrator merges it", strict=False)
 def test_the_readme_shows_the_filter_this_test_runs() -> None:
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     section = text.split("## Adding your own model or filter", 1)[1]

@@ -30,6 +30,7 @@ from cosim.verify.statistics import (
     wilks_upper_bound,
     wilks_upper_rank,
 )
+from models.constants import ARCMIN
 
 UNITS = {
     "time": "s",
@@ -44,7 +45,6 @@ UNITS = {
     "filter.ratio": "1",
 }
 OUTPUTS = [*UNITS, "sensor.y"]  # sensor.y exists but is not recorded
-ARCMIN = math.pi / 180 / 60
 
 
 def table(**kw: object) -> dict:

@@ -70,13 +70,13 @@ def test_two_instances_of_one_fmu_share_one_folder_until_the_last_is_freed() -> 
     a = FmuHost("a", BUILT / "GaussMarkov2.fmu")
     b = FmuHost("b", BUILT / "GaussMarkov2.fmu")
     try:
-        assert a._unzipdir == b._unzipdir and Path(a._unzipdir).is_dir()
+        assert a.unzip_dir == b.unzip_dir and Path(a.unzip_dir).is_dir()
         a.terminate()
         a.terminate()  # a second terminate (cleanup after a failure) does nothing
-        assert Path(b._unzipdir).is_dir()
+        assert Path(b.unzip_dir).is_dir()
     finally:
         b.terminate()
-    assert not Path(b._unzipdir).exists()
+    assert not Path(b.unzip_dir).exists()
 
 
 @needs_fmus

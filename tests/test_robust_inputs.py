@@ -23,7 +23,7 @@ from cosim.units import MAX_UNIT_CHARS, parse_unit, to_unit
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = ROOT / "scenarios" / "demo.toml"
 MASTER = '[master]\nstep = "10 ms"\nstop = "1 s"\n'
-GM = '[blocks.gm]\nmodel = "GaussMarkov2"\n'
+GAUSS_MARKOV_BLOCK = '[blocks.gm]\nmodel = "GaussMarkov2"\n'
 PAIR = (
     'connections = ["flexure.x -> sensor.u"]\n'
     + MASTER
@@ -58,14 +58,17 @@ def test_a_class_that_is_not_a_block_is_refused(tmp_path: Path) -> None:
 
 
 def test_a_nested_list_as_a_parameter_is_refused(tmp_path: Path) -> None:
-    path = write(tmp_path, GM.replace('"\n', '"\nparameters = { tau = [[1, 2]] }\n', 1) + MASTER)
+    path = write(
+        tmp_path,
+        GAUSS_MARKOV_BLOCK.replace('"\n', '"\nparameters = { tau = [[1, 2]] }\n', 1) + MASTER,
+    )
     line = refused("check", path)
     assert "key 'blocks.gm.parameters.tau'" in line
     assert "nested list" in line
 
 
 def test_an_infinite_stop_is_refused_in_the_file_and_on_the_command_line(tmp_path: Path) -> None:
-    path = write(tmp_path, '[master]\nstep = "10 ms"\nstop = inf\n' + GM)
+    path = write(tmp_path, '[master]\nstep = "10 ms"\nstop = inf\n' + GAUSS_MARKOV_BLOCK)
     line = refused("check", path)
     assert f"{path}, key 'master.stop'" in line and "finite" in line
     line = refused("run", DEMO, "--out", tmp_path / "out", "--stop", "1e400")
@@ -87,13 +90,13 @@ def test_step_and_stop_errors_name_the_file(tmp_path: Path) -> None:
         ('step = "3 ms"\nstop = "1 s"', "master.stop"),
         ('step = "1 ms"\nstop = "1 m"', "master.stop"),
     ):
-        path = write(tmp_path, f"[master]\n{master}\n" + GM)
+        path = write(tmp_path, f"[master]\n{master}\n" + GAUSS_MARKOV_BLOCK)
         assert f"{path}, key '{key}'" in refused("check", path)
 
 
 def test_too_many_steps_are_refused_by_check_with_the_limit_and_the_value(tmp_path: Path) -> None:
     # 10^15 steps: 'check' used to say OK and 'run' tried to allocate petabytes
-    path = write(tmp_path, '[master]\nstep = "1 us"\nstop = "1e9 s"\n' + GM)
+    path = write(tmp_path, '[master]\nstep = "1 us"\nstop = "1e9 s"\n' + GAUSS_MARKOV_BLOCK)
     line = refused("check", path)
     assert "key 'master.stop'" in line
     assert "1e+15 macro steps" in line and f"{MAX_STEPS:.0e}" in line
@@ -102,20 +105,23 @@ def test_too_many_steps_are_refused_by_check_with_the_limit_and_the_value(tmp_pa
 def test_a_recording_that_would_not_fit_in_memory_is_refused_with_its_size(
     tmp_path: Path,
 ) -> None:
-    path = write(tmp_path, '[master]\nstep = "10 us"\nstop = "10000 s"\n' + GM)
+    path = write(tmp_path, '[master]\nstep = "10 us"\nstop = "10000 s"\n' + GAUSS_MARKOV_BLOCK)
     line = refused("check", path)
     assert "key 'output.every'" in line
     assert "1000000001 rows x 3 columns = 22.4 GiB" in line and "limit of 2 GiB" in line
     # recording every 1000th step of the same run fits
     path = write(
-        tmp_path, '[master]\nstep = "10 us"\nstop = "10000 s"\n[output]\nevery = 1000\n' + GM
+        tmp_path,
+        '[master]\nstep = "10 us"\nstop = "10000 s"\n[output]\nevery = 1000\n' + GAUSS_MARKOV_BLOCK,
     )
     res = CliRunner().invoke(main, ["check", str(path)])
     assert res.exit_code == 0, res.output
 
 
 def test_toml_nested_ten_thousand_deep_is_refused_quickly(tmp_path: Path) -> None:
-    path = write(tmp_path, "x = " + "[" * 10_000 + "]" * 10_000 + "\n" + MASTER + GM)
+    path = write(
+        tmp_path, "x = " + "[" * 10_000 + "]" * 10_000 + "\n" + MASTER + GAUSS_MARKOV_BLOCK
+    )
     start = time.perf_counter()
     line = refused("check", path)
     assert time.perf_counter() - start < 5
@@ -123,15 +129,19 @@ def test_toml_nested_ten_thousand_deep_is_refused_quickly(tmp_path: Path) -> Non
     assert f"limit of {limits.MAX_DEPTH}" in line
     # inline tables count as well, and brackets inside strings and comments do not
     deep = "x = " + "{a = " * 40 + "1" + "}" * 40 + "\n"
-    assert "nest 40 levels deep" in refused("check", write(tmp_path, deep + MASTER + GM))
+    assert "nest 40 levels deep" in refused(
+        "check", write(tmp_path, deep + MASTER + GAUSS_MARKOV_BLOCK)
+    )
     text = '[scenario]\ndescription = "' + "[" * 40 + '"  # ' + "{" * 40 + "\n"
-    ok = CliRunner().invoke(main, ["check", str(write(tmp_path, text + MASTER + GM))])
+    ok = CliRunner().invoke(
+        main, ["check", str(write(tmp_path, text + MASTER + GAUSS_MARKOV_BLOCK))]
+    )
     assert ok.exit_code == 0, ok.output
 
 
 def test_tables_nested_by_dotted_keys_are_refused(tmp_path: Path) -> None:
     header = "[" + ".".join(["a"] * 5000) + "]\nx = 1\n"
-    line = refused("check", write(tmp_path, MASTER + GM + header))
+    line = refused("check", write(tmp_path, MASTER + GAUSS_MARKOV_BLOCK + header))
     assert f"more than the limit of {limits.MAX_DEPTH}" in line
 
 
@@ -170,12 +180,12 @@ def _chain(n: int) -> tuple[list[str], list[Connection]]:
 
 def _schedule_reference(names: list[str], connections: list[Connection]) -> list[str]:
     """The stepping order as the quadratic implementation found it (Kahn, re-sorted)."""
-    from cosim.master import _strongly_connected
+    from cosim.master import strongly_connected
 
     edges: dict[str, set[str]] = {n: set() for n in names}
     for c in connections:
         edges[c.src_block].add(c.dst_block)
-    comps = _strongly_connected(names, edges)
+    comps = strongly_connected(names, edges)
     comp_of = {n: i for i, comp in enumerate(comps) for n in comp}
     indeg = {i: 0 for i in range(len(comps))}
     succ: dict[int, set[int]] = {i: set() for i in range(len(comps))}
@@ -276,14 +286,16 @@ def test_unit_parsing_is_linear_and_a_long_unit_is_shown_cut() -> None:
         (
             "MAX_STRING_CHARS",
             50,
-            "[scenario]\nname = '" + "n" * 51 + "'\n" + MASTER + GM,
+            "[scenario]\nname = '" + "n" * 51 + "'\n" + MASTER + GAUSS_MARKOV_BLOCK,
             "string '" + "n" * 51 + "' is longer than the limit of 50",
         ),
         (
             "MAX_DEPTH",
             4,
             MASTER
-            + GM.replace('"\n', '"\nparameters = { tau = { value = [1], unit = "s" } }\n', 1),
+            + GAUSS_MARKOV_BLOCK.replace(
+                '"\n', '"\nparameters = { tau = { value = [1], unit = "s" } }\n', 1
+            ),
             "nest at least 5 levels deep, more than the limit of 4",
         ),
     ],
@@ -304,7 +316,9 @@ def test_each_limit_is_refused_with_the_limit_and_the_value(
 
 
 def test_a_long_string_is_shown_cut_with_its_length(tmp_path: Path) -> None:
-    path = write(tmp_path, MASTER + GM + f"[output]\nvariables = ['{'v' * 20_000}']\n")
+    path = write(
+        tmp_path, MASTER + GAUSS_MARKOV_BLOCK + f"[output]\nvariables = ['{'v' * 20_000}']\n"
+    )
     line = refused("check", path)
     assert "(20000 characters) is longer than the limit of 10000 characters" in line
     assert len(line) < 400
@@ -312,7 +326,7 @@ def test_a_long_string_is_shown_cut_with_its_length(tmp_path: Path) -> None:
 
 # ------------------------------------------------------------------ item 6: the traps
 def test_an_unknown_key_under_scenario_is_refused_with_a_suggestion(tmp_path: Path) -> None:
-    path = write(tmp_path, '[scenario]\nnmae = "demo"\n' + MASTER + GM)
+    path = write(tmp_path, '[scenario]\nnmae = "demo"\n' + MASTER + GAUSS_MARKOV_BLOCK)
     line = refused("check", path)
     assert "key 'scenario.nmae'" in line and "Did you mean 'name'?" in line
 

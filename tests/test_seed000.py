@@ -16,7 +16,6 @@ import pytest
 
 from cosim.reproduce import seed000
 from cosim.reproduce.seed000 import (
-    ARCMIN,
     CONV_LIMIT,
     LARGE_AZIMUTHS,
     STREAMS,
@@ -34,7 +33,7 @@ from cosim.reproduce.seed000_noise import (
 from cosim.reproduce.seed000_report import sensitivity_markdown, sensitivity_plot
 from cosim.verify.campaign import CampaignError
 from cosim.verify.seeds import run_seeds
-from models.constants import OMEGA_IE
+from models.constants import ARCMIN, OMEGA_IE
 
 FIXED_SEED = 2024  # the campaign seed of the README's reproduction; run 0 is "the fixed seed"
 

@@ -9,10 +9,8 @@ import pytest
 
 from models import constants, earth
 from models import conventions as cv
+from models.constants import ARCSEC, DEG
 from models.ship_motion import ShipMotion
-
-ARCSEC = math.pi / 180.0 / 3600.0
-DEG = math.pi / 180.0
 
 
 def make(**params: object) -> ShipMotion:

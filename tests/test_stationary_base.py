@@ -10,9 +10,8 @@ from test_ship_motion import ARCSEC, Strapdown
 
 from models import constants, earth
 from models import conventions as cv
+from models.constants import DEG
 from models.stationary_base import StationaryBase
-
-DEG = math.pi / 180.0
 
 
 def make(**params: object) -> StationaryBase:

@@ -11,10 +11,10 @@ from test_ship_motion import make as make_ship
 
 from models import conventions as cv
 from models import earth
+from models.constants import DEG
 from models.stationary_base import StationaryBase
 from models.turntable import Turntable
 
-DEG = math.pi / 180.0
 BASE = ("omega_ib_b", "omega_dot_b", "f_b", "dtheta_b", "dv_b", "rpy")
 
 

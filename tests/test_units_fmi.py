@@ -8,7 +8,6 @@ parameters are in deg/h, ppm, ug and two units given by name only.
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import pytest
@@ -18,8 +17,8 @@ from cosim.errors import ScenarioError, UnitError
 from cosim.scenario import load_scenario
 from cosim.units import conversion_factor, parse_unit, to_unit, unit_from_fmi
 from cosim.variables import fmu_variables
+from models.constants import DEG
 
-DEG = math.pi / 180.0
 DEG_S = unit_from_fmi("deg/s", {"rad": 1, "s": -1}, factor=DEG)
 DEGPS = unit_from_fmi("degps", {"rad": 1, "s": -1}, factor=DEG)
 G = unit_from_fmi("g", {"m": 1, "s": -2}, factor=9.80665)

@@ -22,11 +22,10 @@ import cosim
 from cosim.interop.cbuild import build_c_fmu
 from cosim.interop.fmu_check import check_fmu
 from cosim.scenario import build_master
+from models.constants import DEG, G0
 
 ROOT = Path(__file__).resolve().parents[1]
 VENDOR = ROOT / "fmus" / "vendor_example"
-DEG = math.pi / 180.0
-G0 = 9.80665
 
 #: The rename map that fits the vendor IMU to the role "imu" (what check-fmu suggests).
 RENAME = {
