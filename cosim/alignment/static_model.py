@@ -64,7 +64,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from cosim.alignment.nav import AlignmentConfigError, AlignmentError
 from cosim.estimation import van_loan
-from cosim.estimation.covariance import CovarianceHistory, covariance_analysis
+from cosim.estimation.covariance import (
+    CovarianceBudget,
+    CovarianceHistory,
+    covariance_analysis,
+    covariance_budget,
+)
 from models.constants import DEG, DEG_PER_HOUR, MICRO_G, OMEGA_IE
 from models.conventions import euler_to_dcm_3
 from models.earth import gravity
@@ -352,6 +357,153 @@ def static_covariance(
         dt,
         transition,
         lambda i: update if (i + 1) % k_upd == 0 else None,
+        record_every=record_every,
+        names=STATES,
+    )
+
+
+# ------------------------------------------------------------------ error budget
+def static_sources(
+    tuning: FilterTuning, C_t_n: ArrayLike, nav_axes: bool = True
+) -> dict[str, FloatArray]:
+    """The initial covariance of :meth:`FilterTuning.P0` split into independent sources.
+
+    The sensor errors' blocks are ``sigma^2 I`` (isotropic), so any orthonormal basis
+    splits them exactly: with ``nav_axes`` the gyro drift is split along the
+    navigation axes (``eps_N, eps_E, eps_D``: the basis vectors ``C_t_n^T e_k`` of the
+    table frame) and the accelerometer bias along north and east of the table's
+    heading; otherwise along the table axes x, y (z).
+
+    Parameters
+    ----------
+    tuning : FilterTuning
+        P0 of the filter.
+    C_t_n : array_like, shape (3, 3)
+        Table (sensor carrier) to NED at the start.
+    nav_axes : bool
+        Split the sensor errors along north/east/down (a fixed base) or the table axes.
+
+    Returns
+    -------
+    dict
+        Source name -> its part of ``P0``, shape (10, 10) [SI^2]; they sum to ``P0``.
+    """
+    P0 = tuning.P0()
+    c = np.asarray(C_t_n, dtype=float)
+    out: dict[str, FloatArray] = {}
+
+    def block(sl: slice) -> FloatArray:
+        part = np.zeros_like(P0)
+        part[sl, sl] = P0[sl, sl]
+        return part
+
+    out["initial velocity error"] = block(slice(0, 2))
+    out["initial misalignment"] = block(slice(2, 5))
+    yaw = math.atan2(c[1, 0], c[0, 0])
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    acc = {"N": (cy, -sy), "E": (sy, cy)} if nav_axes else {"x": (1.0, 0.0), "y": (0.0, 1.0)}
+    for axis, w in acc.items():
+        part = np.zeros_like(P0)
+        part[5:7, 5:7] = tuning.p0_accel_bias**2 * np.outer(w, w)
+        out[f"accelerometer bias {axis}"] = part
+    gyro = (
+        dict(zip("NED", c, strict=True)) if nav_axes else dict(zip("xyz", np.eye(3), strict=True))
+    )
+    for axis, w in gyro.items():
+        part = np.zeros_like(P0)
+        part[7:10, 7:10] = tuning.p0_gyro_drift**2 * np.outer(w, w)
+        out[f"gyro drift {axis}"] = part
+    return out
+
+
+def static_budget(
+    t_end: float,
+    *,
+    tuning: FilterTuning = SEED003,
+    lat: float = 45.0 * DEG,
+    h: float = 0.0,
+    dt: float = 0.1,
+    kf_period: float = 0.1,
+    angle: Callable[[FloatArray], FloatArray] | None = None,
+    base_rpy: ArrayLike = (0.0, 0.0, 0.0),
+    coriolis: bool = False,
+    record_every: int = 1,
+) -> CovarianceBudget:
+    """:func:`static_covariance` split by error source (the same total, to rounding).
+
+    Sources: the initial velocity error and misalignment, the accelerometer bias and
+    gyro drift per axis (:func:`static_sources`: navigation axes without a table,
+    table axes with one), the accelerometer and gyro white noise, the zero-velocity
+    measurement noise.
+
+    Parameters
+    ----------
+    t_end : float
+        Duration [s] (a multiple of ``dt``).
+    tuning : FilterTuning
+        P0, Q, R (default seed 003's).
+    lat, h : float
+        Latitude [rad], height [m].
+    dt : float
+        Propagation step [s]; ``kf_period`` must be a multiple of it.
+    kf_period : float
+        Measurement period [s].
+    angle : callable, optional
+        Encoder angle ``gamma(t)`` [rad] for an array of times [s]; None: no table.
+    base_rpy : array_like, shape (3,)
+        Base attitude [rad].
+    coriolis : bool
+        Include the Coriolis terms.
+    record_every : int
+        Keep every k-th step.
+
+    Returns
+    -------
+    CovarianceBudget
+        Times after the start of fine alignment, states :data:`STATES`.
+
+    Raises
+    ------
+    AlignmentConfigError
+        When the steps do not fit.
+    """
+    n = int(round(t_end / dt))
+    k_upd = int(round(kf_period / dt))
+    if n < 1 or abs(n * dt - t_end) > 1e-9 * max(1.0, t_end):
+        raise AlignmentConfigError(f"t_end = {t_end} s is not a whole number of dt = {dt} s")
+    if k_upd < 1 or abs(k_upd * dt - kf_period) > 1e-9 * kf_period:
+        raise AlignmentConfigError(f"kf_period = {kf_period} s is not a multiple of dt = {dt} s")
+    c_b_n = euler_to_dcm_3(base_rpy)
+    G = noise_input()
+    q = np.diag(tuning.Qc())
+    Qc_parts = {
+        "accelerometer white noise": np.diag(np.where(np.arange(5) < 2, q, 0.0)),
+        "gyro white noise": np.diag(np.where(np.arange(5) >= 2, q, 0.0)),
+    }
+    R = {"measurement noise (zero velocity)": tuning.R()}
+    H = measurement_matrix()
+    mid = (np.arange(n) + 0.5) * dt
+    gammas = np.zeros(n) if angle is None else np.asarray(angle(mid), dtype=float)
+    gamma0 = 0.0 if angle is None else float(np.asarray(angle(np.zeros(1)), dtype=float)[0])
+    P0_parts = static_sources(tuning, c_b_n @ table_dcm(gamma0), nav_axes=angle is None)
+    cache: dict[float, tuple[FloatArray, dict[str, FloatArray]]] = {}
+
+    def transition(i: int) -> tuple[FloatArray, dict[str, FloatArray]]:
+        key = round(float(gammas[i]) % (2.0 * math.pi), 12)
+        if key not in cache:
+            F = error_model(c_b_n @ table_dcm(gammas[i]), lat, h, coriolis)
+            Qd = {}
+            for s, Qc in Qc_parts.items():
+                Phi, Qd[s] = van_loan(F, G, Qc, dt)
+            cache[key] = (Phi, Qd)
+        return cache[key]
+
+    return covariance_budget(
+        P0_parts,
+        n,
+        dt,
+        transition,
+        lambda i: (H, R) if (i + 1) % k_upd == 0 else None,
         record_every=record_every,
         names=STATES,
     )

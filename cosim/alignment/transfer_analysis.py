@@ -22,7 +22,12 @@ from cosim.alignment.transfer_model import (
     linear_error_model,
 )
 from cosim.estimation import van_loan
-from cosim.estimation.covariance import CovarianceHistory, covariance_analysis
+from cosim.estimation.covariance import (
+    CovarianceBudget,
+    CovarianceHistory,
+    covariance_analysis,
+    covariance_budget,
+)
 from models.constants import DEG, OMEGA_IE
 from models.conventions import cross, euler_to_dcm
 from models.earth import euler_motion_truth
@@ -227,3 +232,144 @@ def transfer_covariance(
         names=layout.names,
     )
     return dataclasses.replace(hist, time=t_up)
+
+
+def transfer_budget(
+    t_end: float = 120.0,
+    *,
+    r0: ArrayLike = (10.0, 10.0, 5.0),
+    mount_rpy: ArrayLike = (1.0 * DEG, 1.0 * DEG, 30.0 * DEG),
+    lat: float = 30.0 * DEG,
+    amp: ArrayLike = (12.5 * DEG, 10.0 * DEG, 5.0 * DEG),
+    period: ArrayLike = (12.0, 6.0, 8.0),
+    tuning: TransferTuning | None = None,
+    flexure: bool = False,
+    update_period: float = 0.5,
+    dt: float = 0.1,
+) -> CovarianceBudget:
+    """:func:`transfer_covariance` split by error source (the same total, to rounding).
+
+    Sources: the initial position (``dL``), velocity, level and heading errors, the
+    initial flexure (with ``flexure``), the accelerometer bias and the gyro drift per
+    slave axis (x, y, z), the accelerometer and gyro white noise, the flexure noise
+    ``eta`` and the velocity-matching noise. The same model, steps and updates as
+    :func:`transfer_covariance`.
+
+    Parameters
+    ----------
+    t_end : float
+        Duration [s].
+    r0 : array_like, shape (3,)
+        Lever arm, master axes [m].
+    mount_rpy : array_like, shape (3,)
+        Slave mounting [rad].
+    lat : float
+        Latitude [rad].
+    amp, period : array_like, shape (3,)
+        Ship roll/pitch/yaw amplitude [rad] and period [s].
+    tuning : TransferTuning, optional
+        P0, noises (default seed 001's).
+    flexure : bool
+        Include the flexure states (and the flexure part of the measurement).
+    update_period : float
+        Velocity-matching period [s].
+    dt : float
+        Propagation step [s]; must divide ``update_period``.
+
+    Returns
+    -------
+    CovarianceBudget
+        After each update (times ``j update_period``), states of :class:`StateLayout`.
+
+    Raises
+    ------
+    TransferConfigError
+        When ``dt`` does not divide ``update_period``.
+    """
+    tuning = tuning or TransferTuning()
+    layout = StateLayout(flexure)
+    n = layout.n
+    k_up = int(round(update_period / dt))
+    if k_up < 1 or abs(k_up * dt - update_period) > 1e-9:
+        raise TransferConfigError(f"dt ({dt}) must divide update_period ({update_period})")
+    n_steps = int(round(t_end / dt))
+    r0 = np.asarray(r0, dtype=float)
+    R0 = r0_matrix(r0)
+    c_s_b = euler_to_dcm(np.asarray(mount_rpy, dtype=float))
+    t_mid = (np.arange(n_steps) + 0.5) * dt
+    t_up = np.arange(1, n_steps // k_up + 1) * update_period
+    mid = ship_truth(t_mid, lat=lat, amp=amp, period=period)
+    up = ship_truth(t_up, lat=lat, amp=amp, period=period)
+    w, wd = mid["omega_ib_b"], mid["omega_dot_b"]
+    wr = np.sum(w * r0, axis=-1, keepdims=True)
+    f_p = mid["f_b"] + cross(wd, r0) + w * wr - r0 * np.sum(w * w, axis=-1, keepdims=True)
+    f_mid = np.einsum("mij,mj->mi", mid["C_b_n"], f_p)
+    v_mid = np.einsum("mij,mj->mi", mid["C_b_n"], cross(mid["omega_eb_b"], r0))
+    cs_mid = mid["C_b_n"] @ c_s_b
+    G = np.zeros((n, 9))
+    G[layout.dv, 0:3] = _I3
+    G[layout.att, 3:6] = _I3
+    Qc_parts = {
+        "accelerometer white noise": np.zeros((9, 9)),
+        "gyro white noise": np.zeros((9, 9)),
+    }
+    Qc_parts["accelerometer white noise"][0:3, 0:3] = tuning.q_accel**2 * _I3
+    Qc_parts["gyro white noise"][3:6, 3:6] = tuning.q_gyro**2 * _I3
+    if flexure:
+        _, Gf, Qf = tuning.flexure_model()
+        G[layout.xi, 6:9] = Gf
+        Qc_parts["flexure noise"] = np.zeros((9, 9))
+        Qc_parts["flexure noise"][6:9, 6:9] = Qf
+    R = {"measurement noise (velocity matching)": tuning.r_vel**2 * _I3}
+    P0 = tuning.P0(layout, lat)
+    P0_parts: dict[str, FloatArray] = {}
+
+    def piece(idx: list[int]) -> FloatArray:
+        part = np.zeros_like(P0)
+        part[np.ix_(idx, idx)] = P0[np.ix_(idx, idx)]
+        return part
+
+    att = list(range(n))[layout.att]
+    P0_parts["initial position error"] = piece([layout.dl])
+    P0_parts["initial velocity error"] = piece(list(range(n))[layout.dv])
+    P0_parts["initial level misalignment"] = piece(att[0:2])
+    P0_parts["initial heading misalignment"] = piece(att[2:3])
+    if flexure:
+        P0_parts["initial flexure"] = piece(list(range(n))[layout.xi])
+    for name, sl in (("accelerometer bias", layout.nabla), ("gyro drift", layout.eps)):
+        for axis, i in zip("xyz", list(range(n))[sl], strict=True):
+            P0_parts[f"{name} {axis}"] = piece([i])
+    n_rep = _repeat_steps(period, dt)
+    cache: dict[int, tuple[FloatArray, dict[str, FloatArray]]] = {}
+
+    def transition(k: int) -> tuple[FloatArray, dict[str, FloatArray]]:
+        key = k % n_rep if n_rep else k
+        if key not in cache:
+            A = linear_error_model(f_mid[k], cs_mid[k], v_mid[k], lat, 0.0, layout, tuning=tuning)
+            Qd = {}
+            for s, Qc in Qc_parts.items():
+                Phi, Qd[s] = van_loan(A, G, Qc, dt)
+            cache[key] = (Phi, Qd)
+        return cache[key]
+
+    def measurement(k: int) -> tuple[FloatArray, dict[str, FloatArray]] | None:
+        if (k + 1) % k_up:
+            return None
+        H = np.zeros((3, n))
+        H[:, layout.dv] = _I3
+        if flexure:
+            j = (k + 1) // k_up - 1
+            H[:, layout.xi] = flexure_matrix(up["C_b_n"][j], up["omega_eb_b"][j], R0)
+        return H, R
+
+    budget = covariance_budget(
+        P0_parts,
+        n_steps,
+        dt,
+        transition,
+        measurement,
+        record_every=k_up,
+        include_start=False,
+        names=layout.names,
+    )
+    return dataclasses.replace(budget, time=t_up)

@@ -150,3 +150,190 @@ def covariance_analysis(
             times.append((k + 1) * dt)
             Ps.append(P.copy())
     return CovarianceHistory(np.array(times), np.array(Ps), tuple(names))
+
+
+# ----------------------------------------------------------------------- error budgets
+#: ``budget_transition(k) -> (Phi, {source: Qd})``: step ``k``'s model, noise split by source.
+BudgetTransition = Callable[[int], tuple[FloatArray, dict[str, FloatArray]]]
+#: ``budget_measurement(k) -> (H, {source: R})`` after step ``k``, or None.
+BudgetMeasurement = Callable[[int], tuple[FloatArray, dict[str, FloatArray]] | None]
+
+
+@dataclass(frozen=True)
+class CovarianceBudget:
+    """A covariance analysis split by error source (:func:`covariance_budget`).
+
+    The filter is linear, so its estimation error is a sum of independent
+    contributions, one per source: ``P(t) = sum_s P_s(t)`` exactly.
+
+    Attributes
+    ----------
+    time : ndarray, shape (m,)
+        Recorded times [s].
+    total : ndarray, shape (m, n, n)
+        The filter's covariance (the same as :func:`covariance_analysis` gives).
+    parts : dict
+        Source name -> its part of the covariance, shape (m, n, n), in the insertion
+        order of the sources.
+    transfer : ndarray, shape (m, n, n)
+        ``T(t)``: the estimation error at ``t`` caused by an initial estimation error
+        ``e_0`` is ``T(t) e_0`` (the deterministic part of the error dynamics; a random
+        constant such as a sensor bias is an initial error of its state).
+    names : tuple of str
+        State names, in order.
+    """
+
+    time: FloatArray
+    total: FloatArray
+    parts: dict[str, FloatArray]
+    transfer: FloatArray
+    names: tuple[str, ...] = ()
+
+    def index(self, t: float) -> int:
+        """Row of the recorded time nearest to ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+
+        Returns
+        -------
+        int
+            Index into :attr:`time`.
+        """
+        return int(np.argmin(np.abs(self.time - t)))
+
+    def variances(self, h: ArrayLike) -> tuple[FloatArray, dict[str, FloatArray]]:
+        """Variance of a linear function ``y = h e`` of the error, total and per source.
+
+        Parameters
+        ----------
+        h : array_like, shape (n,)
+            Row vector mapping the error state to the signal (signal unit per state unit).
+
+        Returns
+        -------
+        total : ndarray, shape (m,)
+            ``h P(t) h^T`` at every recorded time [signal unit^2].
+        parts : dict
+            Source -> ``h P_s(t) h^T``, shape (m,).
+        """
+        row = np.asarray(h, dtype=float)
+        total = np.einsum("i,mij,j->m", row, self.total, row)
+        return total, {s: np.einsum("i,mij,j->m", row, P, row) for s, P in self.parts.items()}
+
+
+def covariance_budget(
+    P0_parts: dict[str, ArrayLike],
+    n_steps: int,
+    dt: float,
+    transition: BudgetTransition,
+    measurement: BudgetMeasurement | None = None,
+    *,
+    record_every: int = 1,
+    include_start: bool = True,
+    names: tuple[str, ...] = (),
+) -> CovarianceBudget:
+    """Covariance analysis with every error source propagated on its own.
+
+    The filter's gain ``K`` comes from the total covariance, as in the filter. Each
+    source's part then obeys the same linear recursion with only its own input::
+
+        P_s <- Phi P_s Phi^T + Qd_s                     (propagation)
+        P_s <- (I - K H) P_s (I - K H)^T + K R_s K^T    (update, Joseph form)
+
+    with ``P_s(0)`` its block of ``P0``. Summed over the sources this is the total
+    recursion term by term, so the parts add up to the total to rounding. The transfer
+    matrix ``T`` obeys ``T <- Phi T`` and ``T <- (I - K H) T`` from ``T(0) = I``.
+
+    Parameters
+    ----------
+    P0_parts : dict
+        Source -> its part of the initial covariance, shape (n, n); they sum to ``P0``.
+    n_steps : int
+        Number of steps.
+    dt : float
+        Step length [s].
+    transition : callable
+        ``transition(k) -> (Phi, {source: Qd_s})``, shapes (n, n); the ``Qd_s`` sum to
+        the step's ``Qd`` (Van Loan's ``Qd`` is linear in ``Qc``).
+    measurement : callable, optional
+        ``measurement(k) -> (H, {source: R_s})`` of the update after step ``k`` (shapes
+        (m, n), (m, m); the ``R_s`` sum to ``R``), or None for no update.
+    record_every : int
+        Record after every ``record_every``-th step.
+    include_start : bool
+        Also record time 0.
+    names : tuple of str
+        State names.
+
+    Returns
+    -------
+    CovarianceBudget
+
+    Raises
+    ------
+    ValueError
+        When ``n_steps < 1`` or ``record_every < 1``.
+    """
+    if n_steps < 1 or record_every < 1:
+        raise ValueError(
+            f"n_steps and record_every: expected >= 1, got {n_steps} and {record_every}"
+        )
+    parts = {s: np.array(P, dtype=float) for s, P in P0_parts.items()}
+    P = sum(parts.values(), np.zeros_like(next(iter(parts.values()))))
+    n = P.shape[0]
+    T = np.eye(n)
+    zero = np.zeros(n)
+
+    def add(source: str) -> None:
+        if source not in parts:  # a source that starts with no initial part
+            parts[source] = np.zeros((n, n))
+            rec_parts[source] = [np.zeros((n, n))] * len(rec_total)
+
+    rec_total: list[FloatArray] = []
+    rec_parts: dict[str, list[FloatArray]] = {s: [] for s in parts}
+    rec_T: list[FloatArray] = []
+    times: list[float] = []
+
+    def record(t: float) -> None:
+        times.append(t)
+        rec_total.append(P.copy())
+        rec_T.append(T.copy())
+        for s, Ps in parts.items():
+            rec_parts[s].append(Ps.copy())
+
+    if include_start:
+        record(0.0)
+    for k in range(n_steps):
+        Phi, Qd = transition(k)
+        for s in Qd:
+            add(s)
+        P = Phi @ P @ Phi.T + sum(Qd.values(), np.zeros((n, n)))
+        T = Phi @ T
+        for s, Ps in parts.items():
+            parts[s] = Phi @ Ps @ Phi.T + Qd.get(s, 0.0)
+        upd = None if measurement is None else measurement(k)
+        if upd is not None:
+            H, Rs = upd
+            for s in Rs:
+                add(s)
+            R = sum(Rs.values(), np.zeros((H.shape[0], H.shape[0])))
+            _, P, K, _, _ = joseph_update(zero, P, np.zeros(H.shape[0]), H, R)
+            A = np.eye(n) - K @ H
+            T = A @ T
+            for s, Ps in parts.items():
+                Pn = A @ Ps @ A.T
+                if s in Rs:
+                    Pn = Pn + K @ Rs[s] @ K.T
+                parts[s] = 0.5 * (Pn + Pn.T)
+        if (k + 1) % record_every == 0:
+            record((k + 1) * dt)
+    return CovarianceBudget(
+        np.array(times),
+        np.array(rec_total),
+        {s: np.array(v) for s, v in rec_parts.items()},
+        np.array(rec_T),
+        tuple(names),
+    )
