@@ -52,6 +52,34 @@ UNIT_BASE: dict[str, dict[str, int]] = {
 _NAMESPACE = uuid.UUID("6f0d8a52-3c41-4e0b-9a53-8f7f3e1c2b10")
 
 
+#: Relative tolerance within which two macro steps are the same step for a model's caches.
+#: The master passes ``h_n = t_{n+1} - t_n`` so that a step ends exactly on its grid point;
+#: these differ from the nominal step by a rounding of ``t`` (``ulp(t) / h``: 3e-13 at
+#: t = 120 s, h = 0.05 s), so a cache keyed on the exact ``h`` would miss on every step.
+STEP_RTOL = 1e-9
+
+
+def same_step(h: float, h_ref: float | None) -> bool:
+    """Whether step ``h`` may reuse what a model computed for step ``h_ref``.
+
+    Parameters
+    ----------
+    h : float
+        The step being taken [s].
+    h_ref : float or None
+        The step the cached values were computed for [s]; None when nothing is cached.
+
+    Returns
+    -------
+    bool
+        ``abs(h - h_ref) <= STEP_RTOL * h_ref``: the same macro step up to the rounding
+        of the time grid. Cached values then differ from those of ``h`` by the relative
+        step difference, a rounding of ``t`` (not ``STEP_RTOL``); a step that really
+        changes (a last, shorter step) is recomputed.
+    """
+    return h_ref is not None and abs(h - h_ref) <= STEP_RTOL * h_ref
+
+
 @dataclass(frozen=True)
 class Var:
     """Declaration of one (scalar or vector) model variable.
@@ -189,6 +217,14 @@ class Block(Fmi2Slave):
     :meth:`step`. Each declared variable becomes an attribute: a Python scalar
     for scalars, a float ndarray of shape (n,) for vectors (update it in place
     or assign a new array of the same shape).
+
+    Attributes
+    ----------
+    step_setups : int
+        How many times the model computed its step-dependent coefficients (transition
+        matrices, noise factors); a model that caches them by step (:func:`same_step`)
+        counts each computation, so a run at a constant macro step counts 1 (reset at
+        each initialisation).
     """
 
     #: The model's variables, in the order they appear in the model description.
@@ -207,6 +243,7 @@ class Block(Fmi2Slave):
         doc = inspect.getdoc(type(self)) or type(self).__name__
         self.description = doc.splitlines()[0]
         self.start_time = 0.0
+        self.step_setups = 0
         # Real value reference -> (attribute, element index or -1 for a scalar), and the
         # access plans built from it (see get_real / set_real)
         self._real_slots: dict[int, tuple[str, int]] = {}
@@ -257,6 +294,7 @@ class Block(Fmi2Slave):
         self.start_time = float(start_time)
 
     def exit_initialization_mode(self) -> None:
+        self.step_setups = 0
         self.initialize()
 
     def do_step(self, current_time: float, step_size: float) -> bool:

@@ -45,7 +45,7 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
-from models.block import Block, output, parameter
+from models.block import Block, output, parameter, same_step
 from models.constants import ARCMIN
 
 
@@ -160,7 +160,8 @@ class DeckFlexure(Block):
         self.dtheta_dot_flex = np.zeros(3)
 
     def _model(self, h: float) -> tuple[np.ndarray, np.ndarray]:
-        if self._cache is None or self._cache[0] != h:
+        if self._cache is None or not same_step(h, self._cache[0]):
+            self.step_setups += 1
             phis, roots = [], []
             for beta, q in zip(self._beta, self._q, strict=True):
                 phi, qd = discretize_flexure(float(beta), float(q), h)

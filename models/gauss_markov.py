@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import expm
 
-from models.block import Block, output, parameter
+from models.block import Block, output, parameter, same_step
 
 
 def discretize_gm2(beta: float, q: float, h: float) -> tuple[np.ndarray, np.ndarray]:
@@ -72,7 +72,8 @@ class GaussMarkov2(Block):
         self.x, self.x_dot = float(self._s[0]), float(self._s[1])
 
     def step(self, t: float, h: float) -> None:
-        if self._cache is None or self._cache[0] != h:
+        if self._cache is None or not same_step(h, self._cache[0]):
+            self.step_setups += 1
             phi, qd = discretize_gm2(self._beta, self._q, h)
             self._cache = (h, phi, np.linalg.cholesky(qd + 1e-300 * np.eye(2)))
         _, phi, lq = self._cache

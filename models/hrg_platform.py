@@ -79,7 +79,7 @@ import math
 
 import numpy as np
 
-from models.block import Block, input_, output, parameter
+from models.block import Block, input_, output, parameter, same_step
 from models.constants import ARCMIN, DEG, OMEGA_IE
 from models.conventions import rot_z, rotvec_to_dcm
 from models.step_paths import substeps
@@ -281,7 +281,8 @@ class HrgPlatform(Block):
                 inc[2] += a_next - a_prev
                 rot = rot @ rotvec_to_dcm(inc)
                 a_prev = a_next
-        if self._earth_h != h:
+        if not same_step(h, self._earth_h):
+            self.step_setups += 1
             self._earth_h, self._earth = h, rotvec_to_dcm(-self._w_in_n * h)
         c = self._earth @ self._c @ rot
         # Re-orthonormalise (one Newton step of the polar decomposition): the product of

@@ -67,7 +67,7 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from models.block import Block, input_, output, parameter
+from models.block import Block, input_, output, parameter, same_step
 from models.constants import ARCSEC, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MICRO_G, PPM
 
 UNSET = -1.0  #: start value of the statistical parameters: "take it from the grade"
@@ -338,7 +338,14 @@ def bias_step_coefficients(
 
 
 class StrapdownImu(Block):
-    """Strapdown IMU (gyro and accelerometer triads) with increment outputs."""
+    """Strapdown IMU (gyro and accelerometer triads) with increment outputs.
+
+    Attributes
+    ----------
+    noise_batches : int
+        Batches of input-free noise terms computed since initialisation: one per
+        :data:`AHEAD_STEPS` steps at a constant macro step, more if the step changes.
+    """
 
     variables = (
         parameter(
@@ -407,6 +414,7 @@ class StrapdownImu(Block):
         self._z = np.empty((0, 2, 5, 3))  # normals drawn ahead, one (2, 5, 3) block per step
         self._pos = 0  # next unused block of self._z
         self._ahead: dict[str, Any] | None = None
+        self.noise_batches = 0  # batches of noise terms computed (one per AHEAD_STEPS steps)
         bias = self._const + self._gm + self._rw
         self.gyro_bias_b = bias[0].copy()
         self.accel_bias_b = bias[1].copy()
@@ -415,8 +423,9 @@ class StrapdownImu(Block):
 
     def _coefficients(self, h: float) -> None:
         """Cache the per-step noise coefficients (recomputed only when ``h`` changes)."""
-        if self._coeff_h is not None and abs(h - self._coeff_h) <= 1e-12 * self._coeff_h:
+        if same_step(h, self._coeff_h):
             return
+        self.step_setups += 1
         res = self._res
         gm = np.zeros((2, 5))  # phi, g, l11, l21, l22 (scaled by sqrt(q))
         rw = np.zeros((2, 3))  # l11, l21, l22
@@ -438,6 +447,7 @@ class StrapdownImu(Block):
         ``x_{k+1} = phi x_k + a_k``, ``cumsum`` the sequential sum). The random numbers
         are the same: drawing k blocks at once gives the k blocks drawn one by one.
         """
+        self.noise_batches += 1
         if self._pos >= len(self._z):
             self._z = self._rng.standard_normal((AHEAD_STEPS, 2, 5, 3))
             self._pos = 0
@@ -469,7 +479,7 @@ class StrapdownImu(Block):
     def step(self, t: float, h: float) -> None:
         self._coefficients(h)
         ahead = self._ahead
-        if ahead is None or ahead["h"] != h or self._pos >= len(self._z):
+        if ahead is None or not same_step(h, ahead["h"]) or self._pos >= len(self._z):
             ahead = self._ahead = self._noise_ahead(h)
         k = self._pos - ahead["start"]
         self._pos += 1
