@@ -79,7 +79,7 @@ def truth_models() -> dict[str, type[Block]]:
 
 @functools.cache
 def _truth_models() -> dict[str, type[Block]]:
-    return models.registry()
+    return models.truth_models()
 
 
 def entry_points() -> dict[str, list[Registration]]:

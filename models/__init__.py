@@ -41,8 +41,10 @@ def find_blocks(package: str, path: list[str]) -> dict[str, type[Block]]:
     return dict(sorted(found.items()))
 
 
-def registry() -> dict[str, type[Block]]:
-    """All block classes in ``models/``, by class name.
+def truth_models() -> dict[str, type[Block]]:
+    """All truth-model classes in ``models/``, by class name.
+
+    :mod:`cosim.registry` adds the blocks of installed packages (entry points) to these.
 
     Returns
     -------

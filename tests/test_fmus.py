@@ -21,7 +21,7 @@ from cosim.interop.references import MAX_STEPS, REFERENCE_DIR, drive, reference_
 from cosim.results import RunResult
 from cosim.variables import REAL
 
-BLOCKS = models.registry()
+BLOCKS = models.truth_models()
 NAMES = sorted(BLOCKS)
 
 

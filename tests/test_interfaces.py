@@ -32,7 +32,7 @@ def test_the_six_roles_are_specified() -> None:
 @pytest.mark.parametrize("role, model", PAIRS, ids=[f"{r}-{m}" for r, m in PAIRS])
 def test_our_models_fill_their_roles_exactly(role: str, model: str) -> None:
     spec = load_role(role)
-    host = InProcessHost(model.lower(), models.registry()[model])
+    host = InProcessHost(model.lower(), models.truth_models()[model])
     try:
         match = match_role(host.variables, spec, suggest=False)
     finally:
@@ -50,7 +50,7 @@ def test_our_models_fill_their_roles_exactly(role: str, model: str) -> None:
 
 
 def test_a_model_of_another_kind_does_not_fill_the_role() -> None:
-    host = InProcessHost("table", models.registry()["Turntable"])
+    host = InProcessHost("table", models.truth_models()["Turntable"])
     try:
         match = match_role(host.variables, load_role("motion"))
     finally:

@@ -36,7 +36,7 @@ def test_the_table_comes_from_the_declarations() -> None:
 
 
 def test_a_changed_declaration_makes_the_page_stale(tmp_path: Path) -> None:
-    cls = models.registry()["GaussMarkov2"]
+    cls = models.truth_models()["GaussMarkov2"]
     page = tmp_path / "GaussMarkov2.md"
     page.write_text(modeldocs.render(cls, "## Notes\n\nkept\n"), encoding="utf-8")
     assert "GaussMarkov2" not in modeldocs.outdated(tmp_path)

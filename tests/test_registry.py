@@ -189,7 +189,7 @@ def test_a_users_filter_runs_from_the_command_line(cli, tmp_path: Path) -> None:
 def test_names_lists_truth_models_then_entry_points_without_importing_them(site: Path) -> None:
     toy_package(site)
     known = registry.names()
-    truth = list(models.registry())
+    truth = list(models.truth_models())
     assert known[: len(truth)] == truth
     assert {"ToyFilter", "SinsStaticAlignment", "TransferAlignment"} <= set(known[len(truth) :])
     assert "toy_filters" not in sys.modules
@@ -215,7 +215,7 @@ def test_a_broken_entry_point_fails_only_when_asked_for(site: Path, tmp_path: Pa
     importlib.invalidate_caches()
     # every other name still resolves, and a scenario of them still runs
     assert set(BROKEN) <= set(registry.names())
-    assert registry.find_block("GaussMarkov2") is models.registry()["GaussMarkov2"]
+    assert registry.find_block("GaussMarkov2") is models.truth_models()["GaussMarkov2"]
     assert registry.find_block("ToyFilter").__name__ == "ToyFilter"
     assert cosim.run(toy_scenario(tmp_path), stop=0.1).status == "completed"
     with pytest.raises(ScenarioError) as info:
@@ -301,7 +301,7 @@ def test_every_alignment_filter_is_registered_under_its_class_name() -> None:
 
 def test_truth_models_are_what_make_fmus_packs_and_no_entry_point_shadows_them() -> None:
     truth = registry.truth_models()
-    assert truth == models.registry()
+    assert truth == models.truth_models()
     assert not set(truth) & set(registry.entry_points())
     assert all(registry.is_truth_model(name) for name in truth)
     assert not registry.is_truth_model("SinsStaticAlignment")

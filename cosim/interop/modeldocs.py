@@ -204,7 +204,7 @@ def outdated(docs_dir: Path = DOCS_DIR) -> dict[str, str]:
         Model name -> its up-to-date page text, for every page that is missing or stale.
     """
     stale = {}
-    for name, cls in models.registry().items():
+    for name, cls in models.truth_models().items():
         page = docs_dir / f"{name}.md"
         text = render(cls, notes_of(page))
         if not page.is_file() or page.read_text(encoding="utf-8") != text:

@@ -117,4 +117,4 @@ def build_all(out_dir: Path) -> list[Path]:
     list of Path
         The FMU files, in class-name order.
     """
-    return [build_fmu(cls, out_dir) for cls in models.registry().values()]
+    return [build_fmu(cls, out_dir) for cls in models.truth_models().values()]

@@ -90,7 +90,7 @@ def write_all(out_dir: Path = REFERENCE_DIR) -> list[Path]:
     import models
 
     written = []
-    for name, cls in models.registry().items():
+    for name, cls in models.truth_models().items():
         data = reference_run(cls)
         meta = {"model": name, "seed": SEED, "step": cls.default_step}
         csv, js = RunResult(data, meta).save(out_dir, stem=name)
