@@ -1,0 +1,693 @@
+"""Error budget per requirement: the variance of its signal split by error source.
+
+For a filter with a linear covariance model the estimation error is a sum of
+independent contributions, one per source (initial errors, each sensor bias and drift
+component, each white noise, the measurement noise, the flexure):
+:func:`cosim.estimation.covariance.covariance_budget` propagates each part with the
+filter's own gain, so the parts add up to the filter's covariance exactly. A
+requirement's signal is a linear function of the error state, ``y = h e`` (``h`` a row
+vector, e.g. a heading error ``-M_3 psi`` of the psi angle), so its variance splits as
+``h P h^T = sum_s h P_s h^T``.
+
+The time of the budget: a ``value`` requirement at its ``at`` (default the stop time);
+a ``bound`` requirement over ``[from, until]`` is reduced to the time in the window
+where the model's total variance is largest (the parts at that time); a ``settling``
+requirement has no budget (its metric is a time, not a linear function of the error).
+
+Models known here (the block's class in the scenario, its parameters from the file):
+
+- ``SinsStaticAlignment`` (seed 003, static and turntable):
+  :func:`cosim.alignment.static_model.static_budget`; the sensor errors split along
+  north/east/down on a fixed base, along the table axes on a turntable;
+- ``TransferAlignment`` (seed 001): :func:`cosim.alignment.transfer_analysis.transfer_budget`,
+  the small-error model along the ship's closed-form motion (an ideal filter on the same
+  data, not the block's two-stage bookkeeping); sensor errors per slave axis.
+
+Beside it the campaign's evidence (:mod:`cosim.verify.regression`): each run's signed
+error at the budget's time regressed on the parameters the campaign drew, with the slope
+the linear model predicts (``h T(t) d``, ``T`` the error transfer matrix, ``d`` how the
+parameter enters the initial error).
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import io
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from cosim.estimation.covariance import CovarianceBudget
+from cosim.verify.regression import Regressor, drawn_parameters, regression_table
+from cosim.verify.requirements import Requirement
+from cosim.verify.seeds import Stratified
+
+FloatArray = NDArray[np.float64]
+
+NO_MODEL = "no linear error model for this filter"
+
+
+@dataclass
+class LinearModel:
+    """A filter's linear error model, ready to budget requirements.
+
+    Attributes
+    ----------
+    block : str
+        The filter block's name in the scenario.
+    description : str
+        What the model is (for the report).
+    budget : CovarianceBudget
+        The covariance split by source.
+    t0 : float
+        Simulation time of the budget's time 0 [s].
+    row : callable
+        ``row(variable, t) -> h``: the signal ``block.variable`` as a row vector over the
+        error state [rad per state SI unit] at simulation time ``t``, or None.
+    regressors : callable
+        ``regressors(draws) -> list of Regressor`` from the drawn parameters
+        (``"block.name"`` -> ndarray (runs, size), SI).
+    """
+
+    block: str
+    description: str
+    budget: CovarianceBudget
+    t0: float
+    row: Callable[[str, float], FloatArray | None]
+    regressors: Callable[[dict[str, FloatArray]], list[Regressor]]
+
+
+# ------------------------------------------------------------------ scenario facts
+def scenario_values(path: str | Path) -> tuple[Any, dict[str, dict[str, Any]]]:
+    """The scenario and every block's parameters (file values over the defaults, SI).
+
+    Parameters
+    ----------
+    path : str or Path
+        Scenario file (built, not run).
+
+    Returns
+    -------
+    scenario : Scenario
+    values : dict
+        ``{block: {parameter: SI value}}``.
+    """
+    from cosim.scenario import load_scenario
+
+    scenario = load_scenario(path)
+    system, _ = scenario.build()
+    try:
+        values = {}
+        for name, host in system.blocks.items():
+            defaults = {v.name: v.start for v in host.variables.values()}
+            values[name] = {**defaults, **system.parameters.get(name, {})}
+    finally:
+        for host in system.blocks.values():
+            host.terminate()
+    return scenario, values
+
+
+def _vec(p: dict[str, Any], name: str) -> FloatArray:
+    return np.array([float(p[f"{name}[{i}]"]) for i in (1, 2, 3)])
+
+
+def _step(period: float) -> float:
+    """0.1 s if it divides the update period, else the period itself."""
+    k = period / 0.1
+    return 0.1 if k >= 1 and abs(k - round(k)) < 1e-9 else period
+
+
+def _of_source(scenario: Any, source: str) -> str | None:
+    for name, spec in scenario.blocks.items():
+        if spec.kind == "model" and spec.source == source:
+            return name
+    return None
+
+
+def linear_model(
+    path: str | Path, facts: tuple[Any, dict[str, dict[str, Any]]] | None = None
+) -> LinearModel | None:
+    """The linear error model of the scenario's alignment filter, if it has one.
+
+    Parameters
+    ----------
+    path : str or Path
+        Scenario file.
+    facts : tuple, optional
+        :func:`scenario_values` of it, if already read.
+
+    Returns
+    -------
+    LinearModel or None
+        None when no block of the scenario has a linear covariance model here.
+    """
+    scenario, values = facts if facts is not None else scenario_values(path)
+    block = _of_source(scenario, "SinsStaticAlignment")
+    if block is not None:
+        return _static_model(scenario, values, block)
+    block = _of_source(scenario, "TransferAlignment")
+    if block is not None:
+        return _transfer_model(scenario, values, block)
+    return None
+
+
+def _static_model(scenario: Any, values: dict[str, dict[str, Any]], block: str) -> LinearModel:
+    from cosim.alignment.nav import euler_rate_matrix_inv
+    from cosim.alignment.static_model import FilterTuning, static_budget, table_dcm
+    from models.constants import DEG_PER_HOUR, MICRO_G
+    from models.conventions import euler_to_dcm_3
+    from models.turntable import Turntable
+
+    a = values[block]
+    tuning = FilterTuning(
+        p0_vel=a["p0_vel"],
+        p0_att=tuple(_vec(a, "p0_att")),
+        p0_accel_bias=a["p0_accel_bias"],
+        p0_gyro_drift=a["p0_gyro_drift"],
+        q_accel=a["q_accel"],
+        q_gyro=a["q_gyro"],
+        r_vel=a["r_vel"],
+    )
+    base = _of_source(scenario, "StationaryBase")
+    base_rpy = _vec(values[base], "rpy0") if base else np.zeros(3)
+    t0 = float(a["coarse_time"]) if int(a["init_mode"]) == 0 else 0.0
+    t0 += float(scenario.settings.start)
+    table = _of_source(scenario, "Turntable")
+    angle = None
+    if table is not None:
+        tp = values[table]
+        profile = Turntable(instance_name="budget")
+        for name in ("mode", "angle0", "rate", "reversal_period", "rotation_start"):
+            setattr(profile, name, tp[name])
+        profile.accel_limit = tp["accel_limit"]
+
+        def angle(t: FloatArray, _p: Turntable = profile) -> FloatArray:
+            return _p.profile(np.asarray(t, dtype=float) + t0)[0]
+
+    kf = float(a["kf_period"])
+    t_end = round((float(scenario.settings.stop) - t0) / kf) * kf
+    budget = static_budget(
+        t_end,
+        tuning=tuning,
+        lat=float(a["lat"]),
+        h=float(a["h"]),
+        dt=kf,
+        kf_period=kf,
+        angle=angle,
+        base_rpy=base_rpy,
+        coriolis=True,
+        record_every=max(1, int(round(1.0 / kf))),
+    )
+    c_b_n = euler_to_dcm_3(base_rpy)
+    c_s_t = euler_to_dcm_3(_vec(a, "mount_rpy"))
+    gamma0 = 0.0 if angle is None else float(angle(np.zeros(1))[0])
+    c_t_n = c_b_n @ table_dcm(gamma0)
+    m_rpy = euler_rate_matrix_inv(base_rpy)
+
+    def row(variable: str, t: float) -> FloatArray | None:
+        h = np.zeros(10)
+        for name, m in (("rpy_err", m_rpy), ("phi_err", np.eye(3))):
+            for k in range(3):
+                if variable == f"{name}[{k + 1}]":
+                    h[2:5] = -m[k]  # estimate minus truth = -psi (residual)
+                    return h
+        return None
+
+    imu = _of_source(scenario, "StrapdownImu")
+
+    def regressors(draws: dict[str, FloatArray]) -> list[Regressor]:
+        out: list[Regressor] = []
+        for key, (state, label, unit, factor, axes) in {
+            f"{imu}.gyro_bias": (slice(7, 10), "gyro drift", "deg/h", DEG_PER_HOUR, "NED"),
+            f"{imu}.accel_bias": (slice(5, 7), "accelerometer bias", "ug", MICRO_G, "NE"),
+        }.items():
+            if key not in draws:
+                continue
+            x_s = draws[key]  # sensor axes, SI
+            if angle is None:  # fixed base: along north, east, down
+                x_n = x_s @ (c_t_n @ c_s_t).T
+                for k, ax in enumerate(axes):
+                    d = np.zeros(10)
+                    d[state] = c_t_n.T[: state.stop - state.start, k]
+                    out.append(Regressor(f"{label} {ax}", unit, factor, x_n[:, k], d))
+            else:  # turntable: table axes
+                x_t = x_s @ c_s_t.T
+                for k, ax in enumerate("xyz"[: state.stop - state.start]):
+                    d = np.zeros(10)
+                    d[state.start + k] = 1.0
+                    out.append(Regressor(f"{label} {ax} (table)", unit, factor, x_t[:, k], d))
+        return out
+
+    where = "a turntable" if angle is not None else "a fixed base"
+    return LinearModel(
+        block,
+        "seed 003 10-state psi-angle KF on " + where + " (cosim.alignment.static_model."
+        "static_budget: Van Loan every kf_period, Joseph updates, the block's P0, Q, R)",
+        budget,
+        t0,
+        row,
+        regressors,
+    )
+
+
+def _transfer_model(scenario: Any, values: dict[str, dict[str, Any]], block: str) -> LinearModel:
+    from cosim.alignment.nav import euler_rate_matrix_inv
+    from cosim.alignment.transfer_analysis import ship_truth, transfer_budget
+    from cosim.alignment.transfer_model import StateLayout, TransferTuning
+    from models.constants import DEG_PER_HOUR, MICRO_G
+
+    a = values[block]
+    tuning = TransferTuning(
+        p0_pos=float(a["p0_pos"]),
+        p0_vel=float(a["p0_vel"]),
+        p0_level=float(a["p0_level"]),
+        p0_heading=float(a["p0_heading"]),
+        p0_accel_bias=float(a["p0_accel_bias"]),
+        p0_gyro_drift=float(a["p0_gyro_drift"]),
+        q_accel=float(a["q_accel"]),
+        q_gyro=float(a["q_gyro"]),
+        r_vel=float(a["r_vel"]),
+        flex_tau=tuple(_vec(a, "flexure_tau")),
+        flex_sigma=tuple(_vec(a, "flexure_sigma")),
+    )
+    ship = values[_of_source(scenario, "ShipMotion") or ""]
+    lever = _of_source(scenario, "LeverArm")
+    mount = _vec(values[lever], "mount_rpy") if lever else np.zeros(3)
+    flexure = bool(int(a["flexure_states"]))
+    layout = StateLayout(flexure)
+    lat = float(ship["lat0"])
+    kw = {"lat": lat, "amp": _vec(ship, "amp"), "period": _vec(ship, "period")}
+    t0 = float(scenario.settings.start)
+    budget = transfer_budget(
+        float(scenario.settings.stop) - t0,
+        r0=_vec(a, "r0"),
+        mount_rpy=mount,
+        tuning=tuning,
+        flexure=flexure,
+        update_period=float(a["period"]),
+        dt=_step(float(a["period"])),
+        **kw,
+    )
+    m_rel = euler_rate_matrix_inv(mount)
+
+    def row(variable: str, t: float) -> FloatArray | None:
+        c_b_n = ship_truth([t - t0], **kw)["C_b_n"][0]
+        for k in range(3):
+            if variable == f"rpy_err[{k + 1}]":
+                h = np.zeros(layout.n)
+                h[layout.att] = (m_rel @ c_b_n.T)[k]
+                return h
+        return None
+
+    imu = _of_source(scenario, "StrapdownImu")
+
+    def regressors(draws: dict[str, FloatArray]) -> list[Regressor]:
+        out: list[Regressor] = []
+        for key, (state, label, unit, factor) in {
+            f"{imu}.accel_bias": (layout.nabla, "accelerometer bias", "ug", MICRO_G),
+            f"{imu}.gyro_bias": (layout.eps, "gyro drift", "deg/h", DEG_PER_HOUR),
+        }.items():
+            if key in draws:
+                for k, ax in enumerate("xyz"):
+                    d = np.zeros(layout.n)
+                    d[state.start + k] = 1.0
+                    out.append(Regressor(f"{label} {ax}", unit, factor, draws[key][:, k], d))
+        return out
+
+    return LinearModel(
+        block,
+        "seed 001 small-error model along the ship's closed-form motion "
+        f"({'with' if flexure else 'without'} flexure states; cosim.alignment."
+        "transfer_analysis.transfer_budget: an ideal linear filter on the same data, "
+        "Van Loan steps, velocity matching every period)",
+        budget,
+        t0,
+        row,
+        regressors,
+    )
+
+
+# ------------------------------------------------------------------ per requirement
+def _stratified(campaign: Any, values: dict[str, dict[str, Any]]) -> list[Stratified]:
+    out = []
+    for item in campaign.provenance.get("stratified", []):
+        block, name = item.split(".", 1)
+        p = values.get(block, {})
+        size = 0
+        while f"{name}[{size + 1}]" in p:
+            size += 1
+        out.append(Stratified(block, name, max(size, 1), size > 0))
+    return out
+
+
+def signed_errors(campaign: Any, req: Requirement, t: float) -> FloatArray:
+    """Each run's signed error at simulation time ``t`` (linear interpolation).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        A finished campaign (its runs' decimated histories).
+    req : Requirement
+        One of its requirements.
+    t : float
+        Time [s].
+
+    Returns
+    -------
+    ndarray, shape (runs,)
+        In the requirement's unit; nan for a failed run or one that ended before ``t``.
+    """
+    k = campaign.requirements.index(req)
+    out = np.full(len(campaign.records), math.nan)
+    for i, rec in enumerate(campaign.records):
+        h = rec.history
+        if rec.failed or f"e_{k}" not in h or not h["time"].size:
+            continue
+        if h["time"][0] - 1e-9 <= t <= h["time"][-1] + 1e-9:
+            out[i] = float(np.interp(t, h["time"], h[f"e_{k}"]))
+    return out
+
+
+def _budget_time(
+    req: Requirement, model: LinearModel, total: FloatArray, stop: float
+) -> tuple[int, str]:
+    times = model.budget.time + model.t0
+    if req.criterion == "value":
+        at = stop if req.at is None else req.at
+        return int(np.argmin(np.abs(times - at))), f"at {at:g} s"
+    lo = -math.inf if req.start is None else req.start
+    hi = math.inf if req.until is None else req.until
+    inside = np.flatnonzero((times >= lo - 1e-9) & (times <= hi + 1e-9))
+    i = int(inside[np.argmax(total[inside])])
+    window = f"[{times[inside[0]]:g} s, {times[inside[-1]]:g} s]"
+    return i, f"window {window} reduced to its largest total variance, at {times[i]:g} s"
+
+
+def requirement_budget(
+    campaign: Any,
+    req: Requirement,
+    model: LinearModel | None,
+    draws: dict[str, FloatArray],
+) -> dict[str, Any]:
+    """The error budget of one requirement and the campaign's regression (report data).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        A finished campaign.
+    req : Requirement
+        One of its requirements.
+    model : LinearModel or None
+        The scenario's linear model (:func:`linear_model`).
+    draws : dict
+        The campaign's drawn parameters, ``"block.name"`` -> ndarray (runs, size) [SI].
+
+    Returns
+    -------
+    dict
+        ``id``, ``unit``, ``note`` (set when there is no budget), ``model``, ``method``,
+        ``time``, ``reduction``, ``total`` (``variance``, ``sigma``), ``parts`` (per
+        source ``source``, ``variance``, ``sigma``, ``share``), ``sum_check`` (relative
+        difference of the parts' sum from the total) and ``regression``
+        (:func:`cosim.verify.regression.regression_table`).
+    """
+    from cosim.units import conversion_factor
+
+    stop = float(campaign.provenance["master"]["stop"])
+    out: dict[str, Any] = {"id": req.id, "unit": req.unit}
+    block, _, variable = req.signal.partition(".")
+    h = None
+    if model is not None and block == model.block and not req.minus and req.criterion != "settling":
+        h = model.row(variable, stop)
+    if h is None:
+        out["note"] = (
+            NO_MODEL
+            if req.criterion != "settling"
+            else (
+                "no budget for a settling criterion (its metric is a time, not linear in the error)"
+            )
+        )
+        regs = _generic_regressors(draws)
+        if req.criterion == "value":
+            at = stop if req.at is None else req.at
+            y, what = signed_errors(campaign, req, at), f"signed error at {at:g} s"
+        else:
+            y, what = campaign.metric_values(req), "the per-run metric"
+        out["regression"] = {
+            "response": what,
+            **regression_table(y, regs, [None] * len(regs), req.metric_unit),
+        }
+        return out
+    to_unit = conversion_factor("rad", req.unit)
+    total0, _ = model.budget.variances(h * to_unit)
+    i, reduction = _budget_time(req, model, total0, stop)
+    t = float(model.budget.time[i] + model.t0)
+    h = model.row(variable, t) * to_unit  # the row at the budget's time
+    total, parts = model.budget.variances(h)
+    var = float(total[i])
+    rows = [
+        {
+            "source": s,
+            "variance": float(v[i]),
+            "sigma": math.sqrt(max(float(v[i]), 0.0)),
+            "share": float(v[i]) / var if var > 0 else math.nan,
+        }
+        for s, v in parts.items()
+    ]
+    regs = model.regressors(draws)
+    T = model.budget.transfer[i]
+    predicted = [
+        None if r.direction is None else float(h @ T @ r.direction) * r.factor for r in regs
+    ]
+    y = signed_errors(campaign, req, t)
+    out.update(
+        {
+            "model": model.description,
+            "method": (
+                "each source propagated alone with the filter's gain (linear filter, "
+                "independent sources: the parts add); variance = h P_s h^T of the "
+                "signal's row h over the error state"
+            ),
+            "time": t,
+            "reduction": reduction,
+            "total": {"variance": var, "sigma": math.sqrt(max(var, 0.0))},
+            "parts": rows,
+            "sum_check": sum(r["variance"] for r in rows) / var - 1.0 if var > 0 else 0.0,
+            "regression": {
+                "response": f"signed error at {t:g} s",
+                **regression_table(y, regs, predicted, req.unit),
+            },
+        }
+    )
+    return out
+
+
+def _generic_regressors(draws: dict[str, FloatArray]) -> list[Regressor]:
+    out = []
+    for key, x in draws.items():
+        for k in range(x.shape[1]):
+            name = key if x.shape[1] == 1 else f"{key}[{k + 1}]"
+            out.append(Regressor(name, "SI", 1.0, x[:, k]))
+    return out
+
+
+def campaign_budgets(campaign: Any) -> list[dict[str, Any]]:
+    """The error budget of every requirement of a campaign (see :func:`requirement_budget`).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        A finished campaign; its scenario file is read again (built, not run).
+
+    Returns
+    -------
+    list of dict
+        One per requirement, in order.
+    """
+    path = campaign.scenario["file"]
+    facts = scenario_values(path)
+    values = facts[1]
+    model = linear_model(path, facts)
+    indices = [r.index for r in campaign.records]
+    draws = drawn_parameters(
+        _stratified(campaign, values),
+        values,
+        campaign.settings.runs,
+        campaign.settings.seed,
+        indices,
+    )
+    return [requirement_budget(campaign, req, model, draws) for req in campaign.requirements]
+
+
+def budget_section(campaign: Any) -> dict[str, dict[str, Any]]:
+    """:func:`campaign_budgets` keyed by requirement id, never raising (report data).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        A finished campaign.
+
+    Returns
+    -------
+    dict
+        Requirement id -> its budget; when the budget cannot be computed (e.g. the
+        scenario file is gone), an entry with only ``note`` saying why.
+    """
+    try:
+        return {b["id"]: b for b in campaign_budgets(campaign)}
+    except Exception as exc:  # the report must be written whatever the budget does
+        note = f"budget not computed: {type(exc).__name__}: {exc}"
+        return {r.id: {"id": r.id, "unit": r.unit, "note": note} for r in campaign.requirements}
+
+
+# ------------------------------------------------------------------ report rendering
+def budget_figure(entry: dict[str, Any]) -> str:
+    """Bar chart of a requirement's budget: each source's share of the variance.
+
+    Parameters
+    ----------
+    entry : dict
+        One budget (:func:`requirement_budget`) with ``parts``.
+
+    Returns
+    -------
+    str
+        Base64 of the PNG.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    parts = sorted(entry["parts"], key=lambda p: p["variance"])
+    unit = entry["unit"]
+    fig, ax = plt.subplots(figsize=(9.0, 0.9 + 0.32 * len(parts)))
+    share = [100.0 * p["share"] for p in parts]
+    ax.barh([p["source"] for p in parts], share, color="#0969da")
+    for y, (p, v) in enumerate(zip(parts, share, strict=True)):
+        ax.text(v + 0.5, y, f"{v:.1f} %  (1σ {p['sigma']:.3g} {unit})", va="center", fontsize=7)
+    ax.set_xlim(0.0, max(110.0, max(share) * 1.25))
+    ax.set_xlabel("share of the variance [%]")
+    ax.set_title(
+        f"{entry['id']}: error budget at {entry['time']:g} s, total 1σ "
+        f"{entry['total']['sigma']:.3g} {unit} (the shares add to 100 %)",
+        fontsize=9,
+    )
+    ax.tick_params(axis="y", labelsize=8)
+    ax.grid(True, axis="x", alpha=0.3)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, metadata={"Software": None})
+    plt.close(fig)
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _e(x: Any) -> str:
+    return html.escape(str(x), quote=True)
+
+
+def _g(x: Any, digits: int = 4) -> str:
+    return (
+        "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f"{x:.{digits}g}"
+    )
+
+
+def _rows(header: list[str], rows: list[list[Any]], cls: str) -> str:
+    head = "".join(f"<th>{_e(h)}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f"<td>{_e(c)}</td>" for c in r) + "</tr>" for r in rows)
+    return f'<table class="{cls}"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
+
+
+def regression_html(reg: dict[str, Any]) -> str:
+    """The regression table of a budget as HTML.
+
+    Parameters
+    ----------
+    reg : dict
+        ``regression`` of a budget entry.
+
+    Returns
+    -------
+    str
+    """
+    if "rows" not in reg:
+        what = _e(reg.get("response", ""))
+        return f"<p>Regression of the runs ({what}): {_e(reg.get('note', ''))}.</p>"
+    rows = [
+        [r["name"], r["unit"], _g(r["slope"]), _g(r["se"]), _g(r["predicted"]), _g(r["z"], 3)]
+        for r in reg["rows"]
+    ]
+    return (
+        f"<p>Regression of each run's {_e(reg['response'])} on the parameters the campaign "
+        f"drew ({reg['n']} runs; residual 1σ {_g(reg['residual_sigma'])} "
+        f"{_e(reg['response_unit'])}, R² {_g(reg['r2'], 3)}; {_e(reg['formula'])}). "
+        "A slope within about two standard errors of the model's prediction "
+        "(|z| < 2) agrees with it.</p>"
+        + _rows(
+            [
+                "regressor",
+                "unit",
+                "slope",
+                "standard error",
+                "linear model",
+                "z = (slope − model) / se",
+            ],
+            rows,
+            "regression",
+        )
+    )
+
+
+def budget_html(entry: dict[str, Any] | None) -> str:
+    """A requirement's budget section of the HTML report: bar chart and tables.
+
+    Parameters
+    ----------
+    entry : dict or None
+        Its budget (:func:`requirement_budget`), or None.
+
+    Returns
+    -------
+    str
+        A ``<div class="budget">``.
+    """
+    if entry is None:
+        return ""
+    out = [f'<div class="budget" data-id="{_e(entry["id"])}"><h3>Error budget</h3>']
+    if "parts" not in entry:
+        out.append(f'<p class="no-budget">{_e(entry.get("note", NO_MODEL))}.</p>')
+    else:
+        unit = entry["unit"]
+        out.append(
+            f"<p>Linear model: {_e(entry['model'])}. Time: {_e(entry['reduction'])}. "
+            f"Method: {_e(entry['method'])}. Total 1σ {_g(entry['total']['sigma'])} {_e(unit)}; "
+            f"the parts' sum differs from the total by {_g(entry['sum_check'], 2)} (relative). "
+            "Assumes the sources independent and the filter linear: the budget is the "
+            "filter model's prediction; the regression below is the campaign's evidence.</p>"
+        )
+        out.append(
+            f'<figure><img alt="{_e(entry["id"])}: error budget" '
+            f'src="data:image/png;base64,{budget_figure(entry)}"></figure>'
+        )
+        rows = [
+            [p["source"], _g(p["sigma"]), _g(p["variance"]), f"{100 * p['share']:.2f} %"]
+            for p in sorted(entry["parts"], key=lambda p: -p["variance"])
+        ]
+        rows.append(["total", _g(entry["total"]["sigma"]), _g(entry["total"]["variance"]), "100 %"])
+        out.append(
+            _rows(
+                ["source", f"1σ part [{unit}]", f"variance [{unit}²]", "share"],
+                rows,
+                "budget-parts",
+            )
+        )
+    if "regression" in entry:
+        out.append(regression_html(entry["regression"]))
+    out.append("</div>")
+    return "\n".join(out)
