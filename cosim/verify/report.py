@@ -32,6 +32,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from cosim.verify.budget import budget_html, budget_section  # noqa: E402
 from cosim.verify.campaign import Campaign  # noqa: E402
 from cosim.verify.requirements import (  # noqa: E402
     SATISFIED,
@@ -87,7 +88,8 @@ def report_data(campaign: Campaign, created: str) -> dict[str, Any]:
     -------
     dict
         ``schema``, ``created``, ``scenario``, ``campaign``, ``summary``,
-        ``requirements`` (spec + verdict), ``runs``, ``provenance``.
+        ``requirements`` (spec + verdict), ``budgets`` (requirement id -> error budget,
+        :func:`cosim.verify.budget.budget_section`), ``runs``, ``provenance``.
     """
     counts = {k: 0 for k in (SATISFIED, VIOLATED, UNDECIDED)}
     for v in campaign.verdicts:
@@ -109,6 +111,7 @@ def report_data(campaign: Campaign, created: str) -> dict[str, Any]:
             {**r.to_dict(), "result": v.to_dict()}
             for r, v in zip(campaign.requirements, campaign.verdicts, strict=True)
         ],
+        "budgets": budget_section(campaign),
         "runs": [r.to_dict() for r in campaign.records],
         "provenance": campaign.provenance,
     }
@@ -475,6 +478,7 @@ def write_html(campaign: Campaign, path: Path, data: dict[str, Any] | None = Non
             f'<figure><img alt="{_e(req.id)}: error vs time, Monte Carlo envelope and '
             f'histogram" src="data:image/png;base64,{requirement_figure(campaign, req, v)}">'
             "</figure>",
+            budget_html(data.get("budgets", {}).get(req.id)),
             "</section>",
         ]
 
