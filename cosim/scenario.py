@@ -387,6 +387,8 @@ class Scenario:
                     f"parameter '{var.name}' is {value}; expected a finite number", key=key
                 )
             return float(value)
+        if t == "Enumeration" and var.items:
+            return self._item(value, var, key)
         if t in INTEGER_RANGES:
             lo, hi = INTEGER_RANGES[t]
             if isinstance(value, float) and value.is_integer():
@@ -418,6 +420,23 @@ class Scenario:
         raise self.error(
             f"'{var.name}' is a {t} variable; ins-cosim sets Real, Float32, the integer types, "
             f"Enumeration, Boolean, String and Binary variables, not {t}",
+            key=key,
+        )
+
+    def _item(self, value: Any, var: Variable, key: str) -> int:
+        """An Enumeration value given by item name (or by the item's value)."""
+        values = {name: v for name, v in var.items}
+        if isinstance(value, str) and value in values:
+            return values[value]
+        if isinstance(value, float) and value.is_integer():
+            value = int(value)
+        if isinstance(value, int) and not isinstance(value, bool) and value in values.values():
+            return value
+        allowed = ", ".join(f"'{name}' ({v})" for name, v in var.items)
+        tip = did_you_mean(value, values) if isinstance(value, str) else ""
+        raise self.error(
+            f"{shorten(value)} is not an item of the Enumeration '{var.name}'.{tip} "
+            f"Items: {allowed}",
             key=key,
         )
 

@@ -54,6 +54,9 @@ class Variable:
     fmu_name : str
         The variable's own name in the FMU when a rename map exposes it under ``name``
         (empty when not renamed).
+    items : tuple of (str, int)
+        An Enumeration variable's items (name, value) from its declared type (empty for
+        other types, or when the FMU declares none).
     """
 
     name: str
@@ -66,6 +69,7 @@ class Variable:
     description: str = ""
     unit_def: Unit | None = None
     fmu_name: str = ""
+    items: tuple[tuple[str, int], ...] = ()
 
     @property
     def conversion_unit(self) -> str | Unit:
@@ -236,5 +240,12 @@ def fmu_variables(md: Any) -> dict[str, Variable]:
             start=start,
             description=v.description or "",
             unit_def=units.get(unit) if unit else None,
+            items=_items(v) if vtype == "Enumeration" else (),
         )
     return out
+
+
+def _items(v: Any) -> tuple[tuple[str, int], ...]:
+    """The (name, value) items of an Enumeration variable's declared type."""
+    declared = getattr(v, "declaredType", None)
+    return tuple((i.name, int(i.value)) for i in getattr(declared, "items", None) or ())

@@ -144,8 +144,12 @@ def _endpoint(
                 key=key,
             )
         if v.type != REAL:
+            kind = "an output" if causality == "output" else "an input"
             raise scenario.error(
-                f"'{text}': '{block}.{v.name}' is {v.type}; connections carry Real values",
+                f"'{text}': '{block}.{v.name}' is {kind} of type {v.type}; ins-cosim "
+                f"connects Real variables only (Integer, Boolean, Enumeration and String "
+                f"links between blocks are not supported): give the input a constant value "
+                f"under parameters, or list it in unconnected_ok",
                 key=key,
             )
     return scalars
