@@ -374,19 +374,20 @@ def signed_errors(campaign: Any, req: Requirement, t: float) -> FloatArray:
     return out
 
 
-def _budget_time(
-    req: Requirement, model: LinearModel, total: FloatArray, stop: float
-) -> tuple[int, str]:
+def _budget_times(req: Requirement, model: LinearModel, stop: float) -> tuple[FloatArray, str]:
+    """Indices of the budget's times for a requirement, and how the window is reduced."""
     times = model.budget.time + model.t0
     if req.criterion == "value":
         at = stop if req.at is None else req.at
-        return int(np.argmin(np.abs(times - at))), f"at {at:g} s"
+        return np.array([int(np.argmin(np.abs(times - at)))]), f"at {at:g} s"
     lo = -math.inf if req.start is None else req.start
     hi = math.inf if req.until is None else req.until
     inside = np.flatnonzero((times >= lo - 1e-9) & (times <= hi + 1e-9))
-    i = int(inside[np.argmax(total[inside])])
     window = f"[{times[inside[0]]:g} s, {times[inside[-1]]:g} s]"
-    return i, f"window {window} reduced to its largest total variance, at {times[i]:g} s"
+    return inside, (
+        f"window {window}: the variance averaged over the window's times (the mean-square "
+        "error over the window; each part averaged the same way, so they still add)"
+    )
 
 
 def requirement_budget(
@@ -417,8 +418,6 @@ def requirement_budget(
         difference of the parts' sum from the total) and ``regression``
         (:func:`cosim.verify.regression.regression_table`).
     """
-    from cosim.units import conversion_factor
-
     stop = float(campaign.provenance["master"]["stop"])
     out: dict[str, Any] = {"id": req.id, "unit": req.unit}
     block, _, variable = req.signal.partition(".")
@@ -444,47 +443,121 @@ def requirement_budget(
             **regression_table(y, regs, [None] * len(regs), req.metric_unit),
         }
         return out
-    to_unit = conversion_factor("rad", req.unit)
-    total0, _ = model.budget.variances(h * to_unit)
-    i, reduction = _budget_time(req, model, total0, stop)
-    t = float(model.budget.time[i] + model.t0)
-    h = model.row(variable, t) * to_unit  # the row at the budget's time
-    total, parts = model.budget.variances(h)
-    var = float(total[i])
-    rows = [
-        {
-            "source": s,
-            "variance": float(v[i]),
-            "sigma": math.sqrt(max(float(v[i]), 0.0)),
-            "share": float(v[i]) / var if var > 0 else math.nan,
-        }
-        for s, v in parts.items()
-    ]
+    entry, rows, idx = signal_budget(model, req, stop)
     regs = model.regressors(draws)
-    T = model.budget.transfer[i]
+    T = model.budget.transfer[idx]
     predicted = [
-        None if r.direction is None else float(h @ T @ r.direction) * r.factor for r in regs
+        None
+        if r.direction is None
+        else float(np.mean(np.einsum("ki,kij,j->k", rows, T, r.direction))) * r.factor
+        for r in regs
     ]
-    y = signed_errors(campaign, req, t)
-    out.update(
-        {
-            "model": model.description,
-            "method": (
-                "each source propagated alone with the filter's gain (linear filter, "
-                "independent sources: the parts add); variance = h P_s h^T of the "
-                "signal's row h over the error state"
-            ),
-            "time": t,
-            "reduction": reduction,
-            "total": {"variance": var, "sigma": math.sqrt(max(var, 0.0))},
-            "parts": rows,
-            "sum_check": sum(r["variance"] for r in rows) / var - 1.0 if var > 0 else 0.0,
-            "regression": {
-                "response": f"signed error at {t:g} s",
-                **regression_table(y, regs, predicted, req.unit),
-            },
-        }
-    )
+    times = model.budget.time[idx] + model.t0
+    if idx.size == 1:
+        y, what = signed_errors(campaign, req, float(times[0])), f"signed error at {times[0]:g} s"
+    else:
+        y = window_mean_errors(campaign, req, float(times[0]), float(times[-1]))
+        what = f"mean signed error over [{times[0]:g} s, {times[-1]:g} s]"
+    out.update(entry)
+    out["regression"] = {"response": what, **regression_table(y, regs, predicted, req.unit)}
+    return out
+
+
+def signal_budget(
+    model: LinearModel, req: Requirement, stop: float
+) -> tuple[dict[str, Any], FloatArray, int]:
+    """The budget of a requirement's signal from a linear model (no campaign needed).
+
+    Parameters
+    ----------
+    model : LinearModel
+        The scenario's model; the requirement's signal must be one of its block's
+        (:attr:`LinearModel.row` knows it).
+    req : Requirement
+        The requirement (``value`` or ``bound``).
+    stop : float
+        The run's stop time [s] (the default ``at`` and ``until``).
+
+    Returns
+    -------
+    entry : dict
+        ``model``, ``method``, ``time`` [s] (a window's end), ``window`` ([from, until]
+        [s], equal for a ``value``), ``reduction``, ``total``, ``parts``, ``sum_check``
+        (see :func:`requirement_budget`), in the requirement's unit.
+    rows : ndarray, shape (k, n)
+        The signal's row at each of the budget's times [requirement unit per state SI
+        unit].
+    index : ndarray of int, shape (k,)
+        The budget's times as indices into ``model.budget.time``.
+
+    Raises
+    ------
+    ValueError
+        When the model does not know the signal.
+    """
+    from cosim.units import conversion_factor
+
+    block, _, variable = req.signal.partition(".")
+    if block != model.block or model.row(variable, stop) is None:
+        raise ValueError(f"{req.id}: the linear model does not know the signal {req.signal}")
+    to_unit = conversion_factor("rad", req.unit)
+    bud = model.budget
+    idx, reduction = _budget_times(req, model, stop)
+    rows = np.array([model.row(variable, float(bud.time[i]) + model.t0) * to_unit for i in idx])
+
+    def mean_var(P: FloatArray) -> float:
+        return float(np.mean(np.einsum("ki,kij,kj->k", rows, P[idx], rows)))
+
+    var = mean_var(bud.total)
+    items = []
+    for s, P in bud.parts.items():
+        v = mean_var(P)
+        share = v / var if var > 0 else math.nan
+        items.append({"source": s, "variance": v, "sigma": math.sqrt(max(v, 0.0)), "share": share})
+    times = bud.time[idx] + model.t0
+    entry = {
+        "model": model.description,
+        "method": (
+            "each source propagated alone with the filter's gain (linear filter, "
+            "independent sources: the parts add); variance = h P_s h^T of the "
+            "signal's row h over the error state"
+        ),
+        "time": float(times[-1]),
+        "window": [float(times[0]), float(times[-1])],
+        "reduction": reduction,
+        "total": {"variance": var, "sigma": math.sqrt(max(var, 0.0))},
+        "parts": items,
+        "sum_check": sum(r["variance"] for r in items) / var - 1.0 if var > 0 else 0.0,
+    }
+    return entry, rows, idx
+
+
+def window_mean_errors(campaign: Any, req: Requirement, t0: float, t1: float) -> FloatArray:
+    """Each run's signed error averaged over its recorded samples in ``[t0, t1]``.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        A finished campaign (its runs' decimated histories).
+    req : Requirement
+        One of its requirements.
+    t0, t1 : float
+        The window [s].
+
+    Returns
+    -------
+    ndarray, shape (runs,)
+        In the requirement's unit; nan for a failed run or one without samples there.
+    """
+    k = campaign.requirements.index(req)
+    out = np.full(len(campaign.records), math.nan)
+    for i, rec in enumerate(campaign.records):
+        h = rec.history
+        if rec.failed or f"e_{k}" not in h:
+            continue
+        m = (h["time"] >= t0 - 1e-9) & (h["time"] <= t1 + 1e-9)
+        if np.any(m) and h["time"][-1] >= t1 - 1e-9:
+            out[i] = float(np.mean(h[f"e_{k}"][m]))
     return out
 
 
@@ -540,10 +613,21 @@ def budget_section(campaign: Any) -> dict[str, dict[str, Any]]:
         scenario file is gone), an entry with only ``note`` saying why.
     """
     try:
-        return {b["id"]: b for b in campaign_budgets(campaign)}
+        return {b["id"]: _finite(b) for b in campaign_budgets(campaign)}
     except Exception as exc:  # the report must be written whatever the budget does
         note = f"budget not computed: {type(exc).__name__}: {exc}"
         return {r.id: {"id": r.id, "unit": r.unit, "note": note} for r in campaign.requirements}
+
+
+def _finite(x: Any) -> Any:
+    """Non-finite floats as None (strict JSON), recursively."""
+    if isinstance(x, dict):
+        return {k: _finite(v) for k, v in x.items()}
+    if isinstance(x, list):
+        return [_finite(v) for v in x]
+    if isinstance(x, float | np.floating):
+        return float(x) if math.isfinite(x) else None
+    return x
 
 
 # ------------------------------------------------------------------ report rendering
@@ -575,7 +659,7 @@ def budget_figure(entry: dict[str, Any]) -> str:
     ax.set_xlim(0.0, max(110.0, max(share) * 1.25))
     ax.set_xlabel("share of the variance [%]")
     ax.set_title(
-        f"{entry['id']}: error budget at {entry['time']:g} s, total 1σ "
+        f"{entry['id']}: error budget {_when(entry)}, total 1σ "
         f"{entry['total']['sigma']:.3g} {unit} (the shares add to 100 %)",
         fontsize=9,
     )
@@ -586,6 +670,11 @@ def budget_figure(entry: dict[str, Any]) -> str:
     fig.savefig(buf, format="png", dpi=90, metadata={"Software": None})
     plt.close(fig)
     return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _when(entry: dict[str, Any]) -> str:
+    a, b = entry["window"]
+    return f"at {b:g} s" if a == b else f"over [{a:g} s, {b:g} s] (mean variance)"
 
 
 def _e(x: Any) -> str:
