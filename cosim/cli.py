@@ -1,5 +1,5 @@
-"""Command line: ``ins-cosim run | check | fmus | verify | characterize | place | check-fmu
-| export-ssp | reproduce``.
+"""Command line: ``ins-cosim run | check | fmus | verify | plan | characterize | place
+| check-fmu | export-ssp | reproduce``.
 
 A user's mistake (bad scenario, missing FMU, failing block, bad option) prints one
 message naming the file, key, block or variable, and exits non-zero without a traceback:
@@ -298,6 +298,15 @@ def fmus(fmu_dir: Path, build: bool) -> None:
     multiple=True,
     help="Run only run I of the campaign of --runs runs (repeatable), with its seeds and draws.",
 )
+@click.option(
+    "--until-decided",
+    is_flag=True,
+    help="Add runs in batches (--runs, then doubling) until every requirement is decided "
+    "(alpha spending over the planned looks) or --max-runs is reached.",
+)
+@click.option(
+    "--max-runs", type=int, default=None, help="Cap of --until-decided (default 16 x --runs)."
+)
 def verify(
     scenario: Path,
     report_dir: Path,
@@ -309,11 +318,17 @@ def verify(
     resume: bool,
     progress: bool,
     only_runs: tuple[int, ...],
+    until_decided: bool,
+    max_runs: int | None,
 ) -> None:
     """Verify the requirements of SCENARIO over a Monte Carlo campaign.
 
     --only-run I reruns run I alone with the numbers it has in the whole campaign (the
     same --seed and --runs: stratified draws depend on the run count).
+
+    --until-decided judges at looks of --runs, 2 x --runs, ... up to --max-runs runs,
+    each requirement at a confidence whose alphas sum to its own 1 - confidence, and
+    stops when all are decided (README, "Campaigns sized to decide").
 
     Exit code: 0 all satisfied, 1 any violated, 2 any undecided (none violated),
     3 bad input, 130 interrupted (finished runs are kept: rerun with --resume).
@@ -329,23 +344,42 @@ def verify(
         if fmu_dir is not None:
             sc.use_fmus(fmu_dir)
         _echo_sources(sc)
-        campaign = run_campaign(
-            scenario,
-            report_dir,
-            runs=runs,
-            seed=seed,
-            workers=workers,
-            cluster=cluster,
-            fmu_dir=fmu_dir,
-            resume=resume,
-            progress=progress,
-            only_runs=list(only_runs) or None,
-        )
+        if max_runs is not None and not until_decided:
+            raise UserError("--max-runs is the cap of --until-decided: add --until-decided")
+        if until_decided:
+            from cosim.verify.sequential import run_until_decided
+
+            if only_runs:
+                raise UserError("--only-run and --until-decided cannot be combined")
+            campaign = run_until_decided(
+                scenario, report_dir, runs=runs, max_runs=max_runs, seed=seed, workers=workers,
+                cluster=cluster, fmu_dir=fmu_dir, resume=resume, progress=progress,
+                echo=click.echo,
+            )  # fmt: skip
+        else:
+            from cosim.verify.sequential import fixed_campaign_folder
+
+            fixed_campaign_folder(report_dir, resume)
+            campaign = run_campaign(
+                scenario,
+                report_dir,
+                runs=runs,
+                seed=seed,
+                workers=workers,
+                cluster=cluster,
+                fmu_dir=fmu_dir,
+                resume=resume,
+                progress=progress,
+                only_runs=list(only_runs) or None,
+            )
         paths = write_reports(campaign)
     except UserError as exc:
         _fail(exc)
     except (CampaignInterrupted, KeyboardInterrupt) as exc:
-        click.echo(f"{exc or 'interrupted'}", err=True)
+        text = f"{exc or 'interrupted'}"
+        if until_decided:
+            text = text.replace("with --resume", "with --until-decided --resume")
+        click.echo(text, err=True)
         sys.exit(130)
     failed = len(campaign.failed_runs)
     ran = len(campaign.records)
@@ -356,8 +390,64 @@ def verify(
     )
     for req, v in zip(campaign.requirements, campaign.verdicts, strict=True):
         click.echo(f"  {v.verdict.upper():<10} {req.id}: {v.reason}")
+    if "sequential" in campaign.execution:
+        from cosim.verify.sequential import runs_taken
+
+        click.echo("\n".join(runs_taken(campaign.execution["sequential"])))
     click.echo(f"wrote {paths['html']}, {paths['junit']} and {paths['json']}")
     sys.exit(campaign.exit_code)
+
+
+@main.command()
+@click.argument("scenario", type=click.Path(path_type=Path))
+@click.option("--pilot", type=int, default=20, show_default=True, help="Pilot runs.")
+@click.option("--seed", type=int, default=None, help="Campaign seed (default: [campaign] seed).")
+@click.option(
+    "--workers", type=int, default=None, help="Local worker processes (default: CPU count)."
+)
+@click.option(
+    "--max-runs",
+    type=int,
+    default=None,
+    help="Cap of the --until-decided prediction (default 16 x --pilot).",
+)
+@click.option(
+    "--fmu-dir",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Run built-in models from the FMUs in this folder instead of in-process.",
+)
+@click.option("--progress/--no-progress", default=True, help="Progress bar on stderr.")
+def plan(
+    scenario: Path,
+    pilot: int,
+    seed: int | None,
+    workers: int | None,
+    max_runs: int | None,
+    fmu_dir: Path | None,
+    progress: bool,
+) -> None:
+    """Run a pilot of SCENARIO and print, per requirement, the runs and time to decide it.
+
+    The pilot is runs 0 .. --pilot - 1 of the campaign (its seed); nothing is written.
+    Exit code 0, 3 bad input, 130 interrupted.
+    """
+    from cosim.verify.campaign import CampaignInterrupted
+    from cosim.verify.plan import format_plan, make_plan
+
+    try:
+        if max_runs is not None and max_runs < 1:
+            raise UserError(f"--max-runs must be >= 1, got {max_runs}")
+        result = make_plan(
+            scenario, pilot=pilot, seed=seed, workers=workers, fmu_dir=fmu_dir,
+            max_runs=max_runs, progress=progress,
+        )  # fmt: skip
+    except UserError as exc:
+        _fail(exc)
+    except (CampaignInterrupted, KeyboardInterrupt):
+        click.echo("interrupted", err=True)
+        sys.exit(130)
+    click.echo(format_plan(result))
 
 
 @main.command("check-fmu")

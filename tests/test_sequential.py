@@ -17,6 +17,7 @@ numbers are reproducible); naive re-testing is shown to exceed that same bound.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -190,3 +191,31 @@ def test_naive_retesting_exceeds_alpha_and_the_rule_does_not() -> None:
         ours, _ = wrong_rate(wilks_codes(k, looks, looks.confidences(0.95), 0.95), 1)
         assert naive > ALPHA + tolerance(ALPHA, M), (looks.runs, naive)
         assert ours <= ALPHA + tolerance(ALPHA, M), (looks.runs, ours)
+
+
+# ------------------------------------------------------------------ refused designs
+def test_a_stratified_scenario_is_refused_before_any_build(tmp_path) -> None:
+    """Its Latin-hypercube design depends on the total run count (cosim.verify.seeds)."""
+    from cosim.verify.campaign import CampaignError
+    from cosim.verify.sequential import run_until_decided
+
+    scenario = Path(__file__).resolve().parent.parent / "scenarios" / "transfer_alignment.toml"
+    with pytest.raises(CampaignError, match=r"stratify = \['imu.accel_bias', 'imu.gyro_bias'\]"):
+        run_until_decided(scenario, tmp_path / "r", workers=1, progress=False)
+    assert not (tmp_path / "r").exists()
+
+
+def test_resume_refuses_other_looks(tmp_path) -> None:
+    """The looks are fixed before the first run: --resume with another cap is refused."""
+    from cosim.verify.campaign import CampaignError
+    from cosim.verify.sequential import SEQUENTIAL_FILE, run_until_decided
+
+    scenario = Path(__file__).resolve().parent.parent / "scenarios" / "demo_verify.toml"
+    out = tmp_path / "r"
+    campaign = run_until_decided(scenario, out, runs=2, max_runs=2, workers=1, progress=False)
+    assert len(campaign.records) == 2 and (out / SEQUENTIAL_FILE).is_file()
+    assert campaign.execution["sequential"]["looks"] == [2]
+    with pytest.raises(CampaignError, match="cannot resume: looks was"):
+        run_until_decided(scenario, out, max_runs=8, resume=True, workers=1, progress=False)
+    with pytest.raises(CampaignError, match="to resume with --until-decided"):
+        run_until_decided(scenario, tmp_path / "none", resume=True, workers=1, progress=False)

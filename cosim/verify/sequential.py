@@ -48,7 +48,6 @@ from __future__ import annotations
 
 import inspect
 import json
-import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -56,11 +55,13 @@ from typing import Any
 
 import numpy as np
 
+from cosim.scenario import load_scenario
 from cosim.verify.campaign import (
     MANIFEST,
     RUNS_DIR,
     Campaign,
     CampaignError,
+    parse_campaign,
     prepare,
     run_campaign,
 )
@@ -82,11 +83,13 @@ __all__ = [
     "Looks",
     "default_max_runs",
     "first_decisions",
+    "fixed_campaign_folder",
     "judge_at",
     "judge_sequentially",
     "plan_looks",
     "requirement_confidence",
     "run_until_decided",
+    "runs_taken",
 ]
 
 #: Confidence of a requirement that states none.
@@ -449,13 +452,15 @@ def run_until_decided(
         On Ctrl-C; the finished runs are on disk (continue with ``resume``).
     """
     out = Path(out_dir)
-    prep = prepare(scenario, fmu_dir)
-    if prep.settings.stratify:
+    sc = load_scenario(scenario)
+    stratify = parse_campaign(sc).stratify
+    if stratify:  # refused before anything is built
         raise CampaignError(
-            f"{prep.scenario.path}: --until-decided cannot add runs to a stratified design "
-            f"([campaign] stratify = {list(prep.settings.stratify)} draws over a fixed run "
-            f"count); run a fixed campaign with --runs, or remove stratify"
+            f"{sc.path}: --until-decided cannot add runs to a stratified design ([campaign] "
+            f"stratify = {list(stratify)} draws over a fixed run count); run a fixed "
+            f"campaign with --runs, or remove stratify"
         )
+    prep = prepare(scenario, fmu_dir)
     old = _read_design(out) if resume else None
     if seed is None:
         seed = int(old["seed"]) if old is not None else prep.settings.seed
@@ -574,3 +579,57 @@ def _finish(
         },
     )
     return campaign
+
+
+def runs_taken(sequential: dict[str, Any]) -> list[str]:
+    """The runs each requirement took, as printed by ``verify --until-decided``.
+
+    Parameters
+    ----------
+    sequential : dict
+        ``campaign.execution["sequential"]`` of :func:`run_until_decided`.
+
+    Returns
+    -------
+    list of str
+        A heading and one line per requirement.
+    """
+    looks = ", ".join(str(n) for n in sequential["looks"])
+    out = [f"runs to decide (looks at {looks} runs; {sequential['stopped_at']} runs made):"]
+    for rid, r in sequential["requirements"].items():
+        if r["look"] is None:
+            out.append(
+                f"  {rid}: not decided by {r['runs']} runs (the cap is {sequential['max_runs']})"
+            )
+        else:
+            out.append(f"  {rid}: {r['verdict']} after {r['runs']} runs (look {r['look']})")
+    return out
+
+
+def fixed_campaign_folder(out_dir: str | Path, resume: bool) -> None:
+    """Before a fixed campaign in ``out_dir``: refuse to resume an until-decided one.
+
+    A fixed ``--resume`` would judge its runs at full confidence after the looks, the
+    naive re-test the sequential rule avoids. A new fixed campaign (no ``resume``)
+    replaces the sequential one: its design file is removed.
+
+    Parameters
+    ----------
+    out_dir : str or Path
+        The report folder.
+    resume : bool
+        Whether the fixed campaign resumes.
+
+    Raises
+    ------
+    CampaignError
+        ``resume`` of an until-decided campaign.
+    """
+    design = Path(out_dir) / SEQUENTIAL_FILE
+    if resume and design.is_file():
+        raise CampaignError(
+            f"{out_dir}: an --until-decided campaign ({SEQUENTIAL_FILE}); resume it with "
+            f"--until-decided --resume"
+        )
+    if not resume:
+        design.unlink(missing_ok=True)
