@@ -22,8 +22,8 @@ records and is checked like a TOML scenario. What is read from ``SystemStructure
   ``ssd:Units``, or parsed from the name), ``ssv:Enumeration`` values are item names;
 - ``ssd:Units`` (``ssc:Unit`` / ``ssc:BaseUnit``);
 - ``ssd:DefaultExperiment`` start and stop time; the macro step from the OSP annotation
-  ``osp:FixedStepAlgorithm baseStepSize`` (what ``export-ssp`` and libcosim write), else
-  ``ssd:SimulationInformation/ssd:FixedStepMaster stepSize``; the coupling from the
+  ``osp:FixedStepAlgorithm baseStepSize`` (SSP 1.0 has no element for it; this is what
+  ``export-ssp`` writes and libcosim reads); the coupling from the
   ``org.ins-cosim.scenario`` annotation (``export-ssp`` writes the scenario's), else
   ``"jacobi"`` (what libcosim and most SSP masters do). ``step``, ``stop``, ``start`` and
   ``coupling`` given to :func:`load_ssp` override them.
@@ -294,7 +294,7 @@ def load_ssp(
         if found is not None:
             raise archive.error(
                 ssd_name,
-                f"{where}/{tag.split('/')[-1]} '{found.get('name', '')}'",
+                f"{where}/{tag.split(':')[-1]} '{found.get('name', '')}'",
                 f"{what} is not supported; ins-cosim imports one flat system of FMU components",
             )
     workdir = Path(tempfile.mkdtemp(prefix="ins_cosim_ssp_"))
@@ -597,18 +597,15 @@ def _settings(
         stop = float(text)
     if step is None:
         found = root.find(".//osp:FixedStepAlgorithm", NS)
-        master = root.find("ssd:System/ssd:SimulationInformation/ssd:FixedStepMaster", NS)
-        if found is not None and found.get("baseStepSize"):
-            step = float(found.get("baseStepSize", ""))
-        elif master is not None and master.get("stepSize"):
-            step = float(master.get("stepSize", ""))
-        else:
+        if found is None or not found.get("baseStepSize"):
             raise archive.error(
                 ssd,
                 "DefaultExperiment",
-                "no macro step: expected an osp:FixedStepAlgorithm baseStepSize annotation "
-                "or ssd:SimulationInformation/ssd:FixedStepMaster stepSize",
+                "no macro step: SSP 1.0 has no element for it; expected the annotation "
+                "<osp:FixedStepAlgorithm baseStepSize=...> (type com.opensimulationplatform, "
+                "as export-ssp writes and libcosim reads), or give the step to load_ssp",
             )
+        step = float(found.get("baseStepSize", ""))
     if coupling is None:
         note = root.find("ssd:Annotations/ssc:Annotation/ic:Scenario", NS)
         coupling = note.get("coupling") if note is not None else None
