@@ -105,7 +105,11 @@ def test_parse_converts_bounds_and_times_to_display_units() -> None:
         ({"boundd": "1 arcmin"}, "requirements[0].boundd", "Did you mean 'bound'"),
         ({"statistic": "p950"}, "requirements[0].statistic", "between p0 and p100"),
         ({"statistic": "median"}, "requirements[0].statistic", "unknown statistic"),
-        ({"confidence": 0.9}, "requirements[0].confidence", "goes with a percentile"),
+        ({"assume": "normal"}, "requirements[0].assume", "goes with 'rms'"),
+        ({"statistic": "rms", "assume": "none"}, "requirements[0].assume", "Bahadur"),
+        ({"statistic": "mean+3sigma", "assume": "gauss"}, "requirements[0].assume", "'none'"),
+        ({"statistic": "p95", "probability": 0.9}, "requirements[0].probability", "'max'"),
+        ({"statistic": "rms", "confidence": 0}, "requirements[0].confidence", "between 0 and"),
         ({"statistic": "p95", "confidence": 1.5}, "requirements[0].confidence", "between 0 and"),
         ({"statistic": "pass_rate"}, "requirements[0].probability", "needs 'probability'"),
         ({"on_failure": "ignore"}, "requirements[0].on_failure", "'exclude'"),
@@ -305,10 +309,15 @@ def test_point_statistics() -> None:
     assert judge(req(), runs).value == 0.8
     rms = judge(req(statistic="rms"), runs)
     assert rms.value == pytest.approx(math.sqrt((0.04 + 0.16 + 0.36 + 0.64) / 4))
-    ks = judge(req(statistic="mean+3sigma"), runs)
+    ks = judge(req(statistic="mean+3sigma", assume="normal"), runs)
     assert ks.value == pytest.approx(0.5 + 3 * np.std([0.2, 0.4, 0.6, 0.8], ddof=1))
-    assert ks.verdict == VIOLATED  # 0.5 + 3 * 0.258 = 1.27 > 1
+    # 0.5 + 3 * 0.258 = 1.27 > 1, but 4 runs bound mu + 3 sigma only within [0.94, 2.8]
+    # (noncentral t, 3 degrees of freedom): not shown either way.
+    assert ks.verdict == UNDECIDED and ks.interval[0] < 1.0 < ks.interval[1]
     assert judge(req(statistic="mean+3sigma"), runs[:1]).verdict == UNDECIDED
+    # the bootstrap bound needs 10 runs
+    few = judge(req(statistic="mean+3sigma"), runs)
+    assert few.verdict == UNDECIDED and "at least 10 runs" in few.reason
 
 
 def test_a_run_too_short_makes_the_verdict_undecided() -> None:
@@ -319,10 +328,12 @@ def test_a_run_too_short_makes_the_verdict_undecided() -> None:
 
 def test_failed_runs_follow_on_failure() -> None:
     runs: list[RunMetric | None] = passing(9) + [None]
-    undecided = judge(req(), runs)
+    # 9 passing runs show the 70 % quantile at 1 - 0.7**9 = 96 % >= 95 % confidence
+    undecided = judge(req(probability=0.7), runs)
     assert undecided.verdict == UNDECIDED and "run(s) 9" in undecided.reason
     assert undecided.details["judged_on_completed_runs"] == SATISFIED
-    excluded = judge(req(on_failure="exclude"), runs)
+    assert undecided.claim.startswith("nothing is shown while 1 run(s) failed")
+    excluded = judge(req(on_failure="exclude", probability=0.7), runs)
     assert excluded.verdict == SATISFIED and excluded.n_used == 9 and excluded.n_failed == 1
     counted = judge(req(on_failure="fail"), runs)
     assert counted.verdict == VIOLATED and math.isinf(counted.value)

@@ -12,13 +12,15 @@ Criteria (``e(t)`` is the error in the display unit, ``t0`` the run's start time
     settling   metric = first time after which |e| <= band      pass: metric <= within
                until the end of the run, minus t0 [s]
 
-Statistics over the runs (README, "Verification and campaigns", has the theory)::
+Statistics over the runs, bounded at ``confidence`` (README, "Verification and
+campaigns"; :mod:`cosim.verify.statistics`)::
 
-    max            largest metric                          <= limit
-    rms            sqrt(mean(metric^2))                    <= limit
-    mean+<k>sigma  mean + k * std (ddof = 1)               <= limit
-    p<q>           Wilks upper tolerance bound of the q-th percentile, at `confidence`
-    pass_rate      Clopper-Pearson bound of P(metric <= limit) against `probability`
+    max            every run meets the limit: one run over it violates; all n passing
+                   with 1 - p^n >= confidence satisfies (`probability` p, default 0.95)
+    rms            sqrt(mean(metric^2)), chi-square bounds (`assume = "normal"`)
+    mean+<k>sigma  mean + k * std, bootstrap (`assume = "none"`) or noncentral-t bounds
+    p<q>           Wilks order-statistic bounds of the q-th percentile
+    pass_rate      Clopper-Pearson bounds of P(metric <= limit) against `probability`
 """
 
 from __future__ import annotations
@@ -63,6 +65,7 @@ REQUIREMENT_KEYS = {
     "statistic",
     "probability",
     "confidence",
+    "assume",
     "on_failure",
 }
 # Keys each criterion needs (beyond the common ones) and may use.
@@ -73,7 +76,10 @@ _CRITERION_KEYS = {
 }
 _QUANTILE = re.compile(r"^p(\d+(?:\.\d+)?)$")
 _MEAN_K_SIGMA = re.compile(r"^mean\s*\+\s*(\d+(?:\.\d+)?)\s*\*?\s*sigma$")
-_DEFAULT_CONFIDENCE = 0.95
+DEFAULT_CONFIDENCE = 0.95
+DEFAULT_MAX_PROBABILITY = 0.95  # the quantile level a `max` shows
+ASSUMPTIONS = ("normal", "none")
+DEFAULT_ASSUME = {"rms": "normal", "mean+ksigma": "none"}
 
 
 @dataclass(frozen=True)
@@ -117,9 +123,13 @@ class Requirement:
     k : float or None
         Factor of ``mean+ksigma``.
     probability : float or None
-        Quantile level p (``p95`` -> 0.95) or the required pass rate.
+        Quantile level p (``p95`` -> 0.95), the required pass rate, or for ``max`` the
+        quantile level its sample maximum must bound (default 0.95).
     confidence : float or None
-        Confidence of the Wilks or Clopper-Pearson bound.
+        One-sided confidence of the statistic's bounds (default 0.95).
+    assume : str or None
+        ``"normal"`` or ``"none"``: the distribution assumed by the ``rms`` and
+        ``mean+ksigma`` bounds (None for the other statistics, which assume none).
     on_failure : str
         How failed runs count: ``"undecided"``, ``"exclude"`` or ``"fail"``.
     factors : tuple of float
@@ -147,6 +157,7 @@ class Requirement:
     k: float | None = None
     probability: float | None = None
     confidence: float | None = None
+    assume: str | None = None
     on_failure: str = "undecided"
     factors: tuple[float, float, float] = (1.0, 1.0, 1.0)
     index: int = 0
@@ -171,14 +182,19 @@ class Requirement:
 
     def describe_statistic(self) -> str:
         """The campaign statistic in words, e.g. ``"p95, Wilks bound at 95 % confidence"``."""
+        conf = f"{100 * (self.confidence or DEFAULT_CONFIDENCE):g} % confidence"
         if self.statistic == "quantile":
-            return f"{self.statistic_text}, Wilks bound at {100 * self.confidence:g} % confidence"
+            return f"{self.statistic_text}, Wilks bound at {conf}"
         if self.statistic == "pass_rate":
-            return (
-                f"pass rate >= {100 * self.probability:g} % (Clopper-Pearson, "
-                f"{100 * self.confidence:g} % confidence)"
-            )
-        return self.statistic_text
+            return f"pass rate >= {100 * self.probability:g} % (Clopper-Pearson, {conf})"
+        if self.statistic == "max":
+            p = self.probability or DEFAULT_MAX_PROBABILITY
+            return f"max (every run; shows {100 * p:g} % of runs at {conf})"
+        assume = self.assume or DEFAULT_ASSUME[self.statistic]
+        method = {"rms": "chi-square bound, normal errors", "none": "bootstrap bound"}.get(
+            self.statistic if assume == "normal" else assume, "noncentral-t bound, normal metric"
+        )
+        return f"{self.statistic_text} ({method}, {conf})"
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data view for JSON reports."""
@@ -203,6 +219,7 @@ class Requirement:
             "statistic_text": self.describe_statistic(),
             "probability": self.probability,
             "confidence": self.confidence,
+            "assume": self.assume,
             "on_failure": self.on_failure,
         }
 
@@ -238,19 +255,25 @@ class Verdict:
     verdict : str
         ``"satisfied"``, ``"violated"`` or ``"undecided"``.
     value : float
-        The statistic compared with the limit (nan when none could be computed); for
-        ``pass_rate`` the observed pass fraction.
+        The campaign's statistic (nan when none could be computed): the sample max,
+        RMS or mean + k sigma, the bound of a percentile, or for ``pass_rate`` the
+        observed pass fraction.
     limit : float
         The limit the statistic is compared with (``probability`` for pass_rate).
     unit : str
         Unit of ``value`` and ``limit`` (``"1"`` for pass_rate).
     reason : str
         One sentence: the numbers behind the verdict.
+    claim : str
+        One sentence in words: the claim about the population of runs (all runs the
+        campaign samples) the verdict supports, with its confidence and assumption.
     n_runs, n_used, n_failed, n_pass : int
         Runs in the campaign, runs the verdict is based on, failed runs, runs whose
         metric met the limit.
     interval : tuple of float or None
-        (lower, upper) confidence bounds (quantile or pass rate), when computed.
+        (lower, upper): one-sided confidence bounds of the population value, each at the
+        requirement's confidence (for ``max``: of its p-quantile); None when no run
+        could be judged.
     details : dict
         Further numbers (sample quantile, order-statistic ranks, runs needed, ...).
     statistic : str
@@ -270,6 +293,7 @@ class Verdict:
     interval: tuple[float, float] | None = None
     details: dict[str, Any] = field(default_factory=dict)
     statistic: str = ""
+    claim: str = ""
 
     def to_dict(self) -> dict[str, Any]:
         """Plain-data view for JSON reports (non-finite numbers as strings)."""
@@ -280,6 +304,7 @@ class Verdict:
             "limit": self.limit,
             "unit": self.unit,
             "reason": self.reason,
+            "claim": self.claim,
             "n_runs": self.n_runs,
             "n_used": self.n_used,
             "n_failed": self.n_failed,
@@ -480,7 +505,7 @@ def _parse_one(
     if not isinstance(stat_text, str):
         raise err(f"expected a string such as 'max' or 'p95', got {stat_text!r}", "statistic")
     stat = stat_text.strip().lower().replace(" ", "")
-    k = probability = confidence = None
+    k = probability = confidence = assume = None
     if stat in ("max", "rms"):
         statistic = stat
     elif m := _MEAN_K_SIGMA.match(stat):
@@ -500,18 +525,19 @@ def _parse_one(
             "statistic",
         )
     if "probability" in table:
-        if statistic != "pass_rate":
-            raise err("'probability' goes with statistic = 'pass_rate'", "probability")
+        if statistic not in ("pass_rate", "max"):
+            raise err(
+                "'probability' goes with statistic = 'pass_rate' (the pass rate to show) or "
+                "'max' (the quantile level the largest run shows, default 0.95)",
+                "probability",
+            )
         probability = _fraction(table, "probability", err)
-    if statistic in ("quantile", "pass_rate"):
-        confidence = (
-            _fraction(table, "confidence", err) if "confidence" in table else _DEFAULT_CONFIDENCE
-        )
-    elif "confidence" in table:
-        raise err(
-            f"'confidence' goes with a percentile ('p95') or 'pass_rate', not '{stat_text}'",
-            "confidence",
-        )
+    elif statistic == "max":
+        probability = DEFAULT_MAX_PROBABILITY
+    confidence = (
+        _fraction(table, "confidence", err) if "confidence" in table else DEFAULT_CONFIDENCE
+    )
+    assume = _assume(table, statistic, stat_text, err)
     on_failure = table.get("on_failure", default_on_failure)
     if on_failure not in ON_FAILURE:
         raise err(
@@ -538,6 +564,7 @@ def _parse_one(
         k=k,
         probability=probability,
         confidence=confidence,
+        assume=assume,
         on_failure=on_failure,
         factors=factors,
         index=i,
@@ -569,6 +596,31 @@ def _column(table: dict[str, Any], key: str, units: Mapping[str, Any], outputs, 
         f"unknown signal '{name}'.{tip} Recorded: {', '.join(recorded) or 'none'}",
         key,
     )
+
+
+def _assume(table: dict[str, Any], statistic: str, stat_text: str, err) -> str | None:  # noqa: ANN001
+    """The ``assume`` key: the distribution the rms / mean+ksigma bounds rest on."""
+    if statistic not in DEFAULT_ASSUME:
+        if "assume" in table:
+            raise err(
+                f"'assume' goes with 'rms' or 'mean+<k>sigma'; '{stat_text}' is bounded "
+                f"without assuming a distribution",
+                "assume",
+            )
+        return None
+    value = table.get("assume", DEFAULT_ASSUME[statistic])
+    if value not in ASSUMPTIONS:
+        raise err(f"expected 'normal' or 'none', got {value!r}", "assume")
+    if statistic == "rms" and value == "none":
+        raise err(
+            "an RMS has no confidence bound without a distribution assumption (one rare, "
+            "huge run can move a mean square anywhere: Bahadur & Savage 1956); keep "
+            "assume = 'normal' (chi-square bound, valid for metrics no heavier-tailed than "
+            "|e| of a normal e) or bound a percentile ('p95') or a 'pass_rate', which "
+            "assume no distribution",
+            "assume",
+        )
+    return str(value)
 
 
 def _unit_text(unit: Any) -> str:

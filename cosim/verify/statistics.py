@@ -1,19 +1,39 @@
-"""Campaign statistics: order-statistic and binomial bounds, and the verdict of a requirement.
+"""Campaign verdicts: the three-valued verdict of a requirement from confidence bounds.
 
 :func:`judge` turns the per-run metrics of one requirement (:mod:`cosim.verify.requirements`)
-into a three-valued :class:`~cosim.verify.requirements.Verdict`; the theory of each
-statistic is in the README ("Verification and campaigns") and in the docstring of
-:mod:`cosim.verify.requirements`.
+into a :class:`~cosim.verify.requirements.Verdict`: satisfied when the statistic's
+one-sided upper confidence bound meets the limit, violated when its lower bound is over
+it (``max``: when a run is over it), else undecided, with the claim about all runs it
+supports in words. The bounds are in :mod:`cosim.verify.bounds` (re-exported here); the
+theory of each statistic is in the README ("Verification and campaigns").
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
+from typing import Any
 
 import numpy as np
 
+from cosim.verify.bounds import (
+    BOOTSTRAP_MIN_RUNS,
+    clopper_pearson,
+    ksigma_bootstrap_bounds,
+    ksigma_normal_bounds,
+    max_bounds,
+    rms_bounds,
+    runs_to_decide,
+    wilks_lower_rank,
+    wilks_min_runs,
+    wilks_upper_bound,
+    wilks_upper_rank,
+)
 from cosim.verify.requirements import (
+    DEFAULT_ASSUME,
+    DEFAULT_CONFIDENCE,
+    DEFAULT_MAX_PROBABILITY,
     SATISFIED,
     UNDECIDED,
     VIOLATED,
@@ -22,144 +42,29 @@ from cosim.verify.requirements import (
     Verdict,
 )
 
-
-def wilks_upper_rank(n: int, p: float, confidence: float) -> int | None:
-    """Rank of the order statistic that is an upper tolerance bound (Wilks).
-
-    The r-th smallest of n independent samples, X_(r), exceeds the p-quantile x_p of a
-    continuous distribution unless at least r samples fall below x_p, so
-    ``P(X_(r) >= x_p) = P(B <= r - 1)`` with ``B ~ Binomial(n, p)``. The smallest r with
-    ``P >= confidence`` gives the tightest bound; r = n (the sample maximum) needs
-    ``1 - p**n >= confidence`` (59 runs at 95 %/95 %).
-
-    Parameters
-    ----------
-    n : int
-        Number of samples.
-    p : float
-        Quantile level (coverage), 0 < p < 1.
-    confidence : float
-        Confidence level, 0 < confidence < 1.
-
-    Returns
-    -------
-    int or None
-        Rank r (1 = smallest, n = largest), or None when n samples are too few.
-    """
-    from scipy import stats  # imported here: campaign workers never need it
-
-    if n < 1:
-        return None
-    ranks = np.arange(1, n + 1)
-    ok = stats.binom.cdf(ranks - 1, n, p) >= confidence
-    return int(ranks[ok][0]) if ok.any() else None
+__all__ = [
+    "clopper_pearson",
+    "judge",
+    "ksigma_bootstrap_bounds",
+    "ksigma_normal_bounds",
+    "max_bounds",
+    "overall_exit_code",
+    "rms_bounds",
+    "runs_to_decide",
+    "wilks_lower_rank",
+    "wilks_min_runs",
+    "wilks_upper_bound",
+    "wilks_upper_rank",
+]
 
 
-def wilks_lower_rank(n: int, p: float, confidence: float) -> int | None:
-    """Rank of the order statistic that is a lower confidence bound of the p-quantile.
-
-    ``P(X_(r) <= x_p) = P(B >= r)`` with ``B ~ Binomial(n, p)``; the largest r with
-    ``P >= confidence`` gives the tightest bound.
-
-    Parameters
-    ----------
-    n : int
-        Number of samples.
-    p : float
-        Quantile level, 0 < p < 1.
-    confidence : float
-        Confidence level, 0 < confidence < 1.
-
-    Returns
-    -------
-    int or None
-        Rank r (1 = smallest), or None when n samples are too few.
-    """
-    from scipy import stats
-
-    if n < 1:
-        return None
-    ranks = np.arange(1, n + 1)
-    ok = stats.binom.sf(ranks - 1, n, p) >= confidence
-    return int(ranks[ok][-1]) if ok.any() else None
-
-
-def wilks_min_runs(p: float, confidence: float) -> int:
-    """Fewest samples for which the maximum bounds the p-quantile at ``confidence``.
-
-    ``1 - p**n >= confidence``  <=>  ``n >= ln(1 - confidence) / ln(p)``.
-
-    Parameters
-    ----------
-    p : float
-        Quantile level, 0 < p < 1.
-    confidence : float
-        Confidence level, 0 < confidence < 1.
-
-    Returns
-    -------
-    int
-        The smallest such n (59 for 0.95/0.95, 45 for 0.95/0.90, 299 for 0.99/0.95).
-    """
-    n = max(1, math.ceil(math.log1p(-confidence) / math.log(p) - 1e-12))
-    while 1.0 - p**n < confidence:  # guard the ceil against rounding
-        n += 1
-    return n
-
-
-def wilks_upper_bound(values: Sequence[float], p: float, confidence: float) -> float | None:
-    """Wilks' one-sided upper tolerance bound of the p-quantile.
-
-    Parameters
-    ----------
-    values : sequence of float, shape (n,)
-        Independent samples.
-    p, confidence : float
-        Quantile level and confidence.
-
-    Returns
-    -------
-    float or None
-        The order statistic of rank :func:`wilks_upper_rank`, or None if too few samples.
-    """
-    x = np.sort(np.asarray(values, dtype=float))
-    r = wilks_upper_rank(x.size, p, confidence)
-    return None if r is None else float(x[r - 1])
-
-
-def clopper_pearson(k: int, n: int, confidence: float) -> tuple[float, float]:
-    """One-sided Clopper-Pearson bounds of a success probability.
-
-    With k successes in n trials, the lower bound L solves ``P(Bin(n, L) >= k) =
-    1 - confidence`` and the upper bound U solves ``P(Bin(n, U) <= k) = 1 - confidence``:
-    ``L = Beta.ppf(1 - confidence; k, n - k + 1)`` (0 when k = 0) and
-    ``U = Beta.ppf(confidence; k + 1, n - k)`` (1 when k = n). Each bound holds on its
-    own with probability >= ``confidence``.
-
-    Parameters
-    ----------
-    k : int
-        Successes (runs that met the limit), 0 <= k <= n.
-    n : int
-        Trials (runs), n >= 1.
-    confidence : float
-        Confidence of each one-sided bound.
-
-    Returns
-    -------
-    (float, float)
-        (L, U).
-    """
-    from scipy import stats
-
-    if n < 1 or not 0 <= k <= n:
-        raise ValueError(f"need 0 <= k <= n and n >= 1, got k = {k}, n = {n}")
-    lower = 0.0 if k == 0 else float(stats.beta.ppf(1.0 - confidence, k, n - k + 1))
-    upper = 1.0 if k == n else float(stats.beta.ppf(confidence, k + 1, n - k))
-    return lower, upper
-
-
-def judge(req: Requirement, metrics: Sequence[RunMetric | None]) -> Verdict:
+# ------------------------------------------------------------------------------ verdicts
+def judge(
+    req: Requirement,
+    metrics: Sequence[RunMetric | None],
+    *,
+    confidence: float | None = None,
+) -> Verdict:
     """The campaign verdict of one requirement.
 
     Parameters
@@ -168,15 +73,31 @@ def judge(req: Requirement, metrics: Sequence[RunMetric | None]) -> Verdict:
         The requirement.
     metrics : sequence of RunMetric or None, shape (n_runs,)
         One per run in run order; None for a run that failed.
+    confidence : float, optional
+        Confidence of every bound instead of the requirement's own (e.g. a share of
+        ``1 - confidence`` spent at one look of a sequential campaign).
 
     Returns
     -------
     Verdict
-        See the README ("Verdict rules"): a run too short to decide makes the verdict
-        undecided; failed runs follow ``req.on_failure``.
+        See the README ("Verdict rules"): satisfied when the statistic's upper bound
+        meets the limit, violated when its lower bound is over it (``max``: when a run
+        is over it), else undecided; a run too short to decide makes the verdict
+        undecided; failed runs follow ``req.on_failure``. ``claim`` says in words what
+        the verdict shows about all runs.
     """
-    verdict = _judge(req, metrics)
+    gamma = confidence if confidence is not None else req.confidence
+    gamma = DEFAULT_CONFIDENCE if gamma is None else float(gamma)
+    if not 0.0 < gamma < 1.0:
+        raise ValueError(f"confidence: expected a value in (0, 1), got {gamma}")
+    changes: dict[str, Any] = {"confidence": gamma}
+    if req.statistic == "max" and req.probability is None:
+        changes["probability"] = DEFAULT_MAX_PROBABILITY
+    if req.statistic in DEFAULT_ASSUME and req.assume is None:
+        changes["assume"] = DEFAULT_ASSUME[req.statistic]
+    verdict = _judge(replace(req, **changes), metrics)
     verdict.statistic = req.statistic
+    verdict.details.setdefault("confidence", gamma)
     return verdict
 
 
@@ -192,24 +113,28 @@ def _judge(req: Requirement, metrics: Sequence[RunMetric | None]) -> Verdict:
             used.append(RunMetric(math.inf, False, "run failed"))
     base = {"n_runs": n_runs, "n_failed": len(failed)}
     if not used:
+        why = f"no completed run (all {n_runs} failed)" if n_runs else "no run"
         return Verdict(
             req.id,
             UNDECIDED,
             math.nan,
             *_limit(req),
-            f"no completed run (all {n_runs} failed)" if n_runs else "no run",
+            why,
             n_used=0,
+            claim=f"nothing is shown about the runs: {why}",
             **base,
         )
     short = [m for m in used if m.passed is None]
     if short:
+        why = f"{len(short)} of {len(used)} runs cannot decide: {short[0].note}"
         return Verdict(
             req.id,
             UNDECIDED,
             math.nan,
             *_limit(req),
-            f"{len(short)} of {len(used)} runs cannot decide: {short[0].note}",
+            why,
             n_used=len(used),
+            claim=f"nothing is shown about the runs: {why}",
             **base,
         )
     verdict = _statistic(req, used)
@@ -224,6 +149,7 @@ def _judge(req: Requirement, metrics: Sequence[RunMetric | None]) -> Verdict:
                 f" (violated whatever the {len(failed)} failed run(s) would have given: "
                 f"run(s) {runs})"
             )
+            verdict.claim += f", whatever the {len(failed)} failed run(s) would have given"
             return verdict
         verdict.details["judged_on_completed_runs"] = verdict.verdict
         verdict.verdict = UNDECIDED
@@ -231,8 +157,13 @@ def _judge(req: Requirement, metrics: Sequence[RunMetric | None]) -> Verdict:
             f"{len(failed)} of {n_runs} runs failed (run(s) {runs}); on_failure = 'undecided'. "
             f"On the {len(used)} completed runs: {verdict.reason}"
         )
+        verdict.claim = (
+            f"nothing is shown while {len(failed)} run(s) failed; the completed runs alone "
+            f"would show: {verdict.claim}"
+        )
     elif failed and req.on_failure == "exclude":
         verdict.reason += f" ({len(failed)} failed run(s) excluded)"
+        verdict.claim += f" (of runs that complete; {len(failed)} failed run(s) excluded)"
     elif failed:
         verdict.reason += f" ({len(failed)} failed run(s) counted as failing)"
     return verdict
@@ -261,117 +192,85 @@ def _fmt(x: float, unit: str) -> str:
     return f"{x:.4g} {unit}" if unit not in ("1", "") else f"{x:.4g}"
 
 
+_ASSUMPTION = {  # (method, assumption) of the rms and mean+ksigma bounds
+    ("rms", "normal"): ("chi-square", "assumes metrics no heavier-tailed than |e| of a normal e"),
+    ("mean+ksigma", "normal"): ("noncentral t", "assumes normally distributed metrics"),
+    ("mean+ksigma", "none"): ("bootstrap", "approximate, no distribution assumed"),
+}
+
+
 def _statistic(req: Requirement, used: list[RunMetric]) -> Verdict:
     values = np.array([m.value for m in used], dtype=float)
     n = values.size
     n_pass = int(sum(bool(m.passed) for m in used))
     unit = req.metric_unit
     lim = _fmt(req.limit, unit)
+    gamma = float(req.confidence)
+    conf = f"{100 * gamma:g} %"
     common = {"n_used": n, "n_pass": n_pass}
     name = req.statistic_text
-
-    def decide(value: float, what: str) -> Verdict:
-        ok = value <= req.limit
-        sign = "<=" if ok else ">"
-        return Verdict(
-            req.id,
-            SATISFIED if ok else VIOLATED,
-            value,
-            req.limit,
-            unit,
-            f"{what} = {_fmt(value, unit)} {sign} {lim} over {n} run(s)",
-            **common,
-        )
-
     if req.statistic == "max":
-        return decide(float(np.max(values)), "max")
-    if req.statistic == "rms":
-        with np.errstate(over="ignore"):
-            return decide(float(np.sqrt(np.mean(values**2))), "rms")
-    if req.statistic == "mean+ksigma":
-        if n < 2:
-            return Verdict(
-                req.id,
-                UNDECIDED,
-                math.nan,
-                req.limit,
-                unit,
-                f"{name} needs at least 2 runs, got {n}",
-                **common,
-            )
-        if np.any(np.isinf(values)):
-            value = math.inf
+        return _max(req, values, common)
+    if req.statistic in ("rms", "mean+ksigma"):
+        what = "the RMS" if req.statistic == "rms" else name
+        key = (req.statistic, req.assume)
+        method, assumption = _ASSUMPTION[key]
+        details: dict[str, Any] = {"method": method, "assumption": f"{method} bound, {assumption}"}
+        if req.statistic == "rms":
+            with np.errstate(over="ignore"):
+                value = float(np.sqrt(np.mean(values**2)))
+                if math.isfinite(value) and value > 0:
+                    details["tail_ratio"] = float(np.mean(values**4) / np.mean(values**2) ** 2)
+            lower, upper = rms_bounds(values, gamma)
         else:
-            value = float(np.mean(values) + req.k * np.std(values, ddof=1))
-        return decide(value, name)
-    if req.statistic == "quantile":
-        p, gamma = float(req.probability), float(req.confidence)
-        x = np.sort(values)
-        r_up = wilks_upper_rank(n, p, gamma)
-        r_lo = wilks_lower_rank(n, p, gamma)
-        upper = float(x[r_up - 1]) if r_up is not None else math.inf
-        lower = float(x[r_lo - 1]) if r_lo is not None else -math.inf
-        finite = x[np.isfinite(x)]
-        details = {
-            "sample_quantile": float(np.quantile(x, p)) if finite.size == n else math.nan,
-            "upper_rank": r_up,
-            "lower_rank": r_lo,
-            "runs_needed_for_max": wilks_min_runs(p, gamma),
-        }
-        conf = f"{100 * gamma:g} %"
-        if r_up is not None and upper <= req.limit:
-            verdict, value = SATISFIED, upper
-            reason = (
-                f"{name} upper bound ({conf} confidence, order statistic {r_up} of {n}) = "
-                f"{_fmt(upper, unit)} <= {lim}"
-            )
-        elif r_lo is not None and lower > req.limit:
-            verdict, value = VIOLATED, lower
-            reason = (
-                f"{name} lower bound ({conf} confidence, order statistic {r_lo} of {n}) = "
-                f"{_fmt(lower, unit)} > {lim}"
-            )
-        else:
-            verdict, value = UNDECIDED, upper
-            if r_up is None:
-                reason = (
-                    f"too few runs: a {conf} upper bound of the {name} needs at least "
-                    f"{details['runs_needed_for_max']} runs, got {n}"
+            need = BOOTSTRAP_MIN_RUNS if req.assume == "none" else 2
+            if n < need:
+                why = f"{name} needs at least {need} runs for its {conf} bounds, got {n}"
+                return Verdict(
+                    req.id,
+                    UNDECIDED,
+                    math.nan,
+                    req.limit,
+                    unit,
+                    why,
+                    claim=f"nothing is shown about the runs: {why}",
+                    details={"runs_to_decide": need, **details},
+                    **common,
                 )
+            if np.any(np.isinf(values)):
+                value = lower = upper = math.inf
             else:
-                reason = (
-                    f"the {conf} confidence interval of the {name}, [{_fmt(lower, unit)}, "
-                    f"{_fmt(upper, unit)}], contains the bound {lim}: more runs needed"
-                )
-        return Verdict(
-            req.id,
-            verdict,
-            value,
-            req.limit,
-            unit,
-            reason,
-            interval=(lower, upper),
-            details=details,
-            **common,
-        )
+                value = float(np.mean(values) + req.k * np.std(values, ddof=1))
+                bounds = ksigma_bootstrap_bounds if req.assume == "none" else ksigma_normal_bounds
+                lower, upper = bounds(values, req.k, gamma)
+        return _bounded(req, value, lower, upper, what, details, common)
+    if req.statistic == "quantile":
+        return _quantile(req, values, common)
     # pass rate
-    p, gamma = float(req.probability), float(req.confidence)
+    p = float(req.probability)
     lower, upper = clopper_pearson(n_pass, n, gamma)
     rate = n_pass / n
-    conf = f"{100 * gamma:g} %"
     observed = f"{n_pass}/{n} runs meet {lim}"
+    share = f"of runs meet {lim}"
     if lower >= p:
         verdict = SATISFIED
         reason = f"{observed}; {conf} lower bound of the pass rate {lower:.4f} >= {p:g}"
+        claim = f"with {conf} confidence at least {100 * lower:.3g} % {share} (>= {100 * p:g} %)"
     elif upper < p:
         verdict = VIOLATED
         reason = f"{observed}; {conf} upper bound of the pass rate {upper:.4f} < {p:g}"
+        claim = f"with {conf} confidence fewer than {100 * upper:.3g} % {share} (< {100 * p:g} %)"
     else:
         verdict = UNDECIDED
         need = wilks_min_runs(p, gamma)
         reason = (
             f"{observed}; the pass rate's {conf} bounds [{lower:.4f}, {upper:.4f}] contain "
             f"{p:g}: more runs needed (at least {need} runs, all passing)"
+        )
+        claim = (
+            f"with {conf} confidence between {100 * lower:.3g} % and {100 * upper:.3g} % {share}: "
+            f"neither at least {100 * p:g} % nor less is shown; at least {need} runs, all "
+            f"passing, would show it"
         )
     return Verdict(
         req.id,
@@ -381,7 +280,205 @@ def _statistic(req: Requirement, used: list[RunMetric]) -> Verdict:
         "1",
         reason,
         interval=(lower, upper),
-        details={"per_run_limit": req.limit, "per_run_unit": unit},
+        details={"per_run_limit": req.limit, "per_run_unit": unit, "method": "Clopper-Pearson"},
+        claim=claim + " (no distribution assumed)",
+        **common,
+    )
+
+
+def _bounded(
+    req: Requirement,
+    value: float,
+    lower: float,
+    upper: float,
+    what: str,
+    details: dict[str, Any],
+    common: dict[str, int],
+) -> Verdict:
+    """Three-valued verdict of an estimate with one-sided bounds (rms, mean+ksigma)."""
+    unit, n = req.metric_unit, common["n_used"]
+    lim = _fmt(req.limit, unit)
+    conf = f"{100 * req.confidence:g} %"
+    pop = f"{what} over all runs"
+    interval = f"[{_fmt(lower, unit)}, {_fmt(upper, unit)}]"
+    observed = f"{req.statistic_text} = {_fmt(value, unit)} over {n} run(s)"
+    if upper <= req.limit:
+        verdict = SATISFIED
+        reason = f"{observed}; its {conf} upper bound {_fmt(upper, unit)} <= {lim}"
+        claim = f"with {conf} confidence {pop} is below {_fmt(upper, unit)} (<= {lim})"
+    elif lower > req.limit:
+        verdict = VIOLATED
+        reason = f"{observed}; its {conf} lower bound {_fmt(lower, unit)} > {lim}"
+        claim = f"with {conf} confidence {pop} is above {_fmt(lower, unit)} (> {lim})"
+    else:
+        verdict = UNDECIDED
+        more = runs_to_decide(n, value, lower, upper, req.limit)
+        details["runs_to_decide"] = more
+        tip = f"about {more} runs would likely decide" if more else "more runs needed"
+        side = "<=" if value <= req.limit else ">"
+        reason = (
+            f"{observed} {side} {lim}, but its {conf} confidence bounds {interval} contain "
+            f"{lim}: {tip}"
+        )
+        claim = (
+            f"with {conf} confidence {pop} lies in {interval}: it is not shown to be below "
+            f"{lim}, nor above it; {tip}"
+        )
+    return Verdict(
+        req.id,
+        verdict,
+        value,
+        req.limit,
+        unit,
+        reason,
+        interval=(lower, upper),
+        details=details,
+        claim=f"{claim} ({details['assumption']})",
+        **common,
+    )
+
+
+def _max(req: Requirement, values: np.ndarray, common: dict[str, int]) -> Verdict:
+    """``max``: every run must meet the limit.
+
+    A run over the limit proves the requirement false (no confidence needed). No number
+    of passing runs proves that every run passes; n passing runs show, with confidence
+    ``1 - p^n``, that the p-quantile meets the limit, so the verdict is satisfied when
+    that confidence reaches the requirement's.
+    """
+    unit, n = req.metric_unit, common["n_used"]
+    lim = _fmt(req.limit, unit)
+    p, gamma = float(req.probability), float(req.confidence)
+    conf = f"{100 * gamma:g} %"
+    top = float(np.max(values))
+    lower, upper = max_bounds(values, p, gamma)
+    need = wilks_min_runs(p, gamma)
+    n_over = int(np.sum(values > req.limit))
+    details: dict[str, Any] = {
+        "probability": p,
+        "runs_needed": need,
+        "population_max_lower_bound": top,
+        "method": "Wilks (sample maximum)",
+    }
+    if top > req.limit:
+        rate_up = clopper_pearson(n - n_over, n, gamma)[1]
+        verdict = VIOLATED
+        reason = f"max = {_fmt(top, unit)} > {lim} ({n_over} of {n} runs over the limit)"
+        claim = (
+            f"not every run meets {lim}: {n_over} of {n} runs exceed it (up to "
+            f"{_fmt(top, unit)}), which is certain, and with {conf} confidence fewer than "
+            f"{100 * rate_up:.3g} % of runs meet it"
+        )
+    else:
+        shown = (1.0 - gamma) ** (1.0 / n)  # largest p with 1 - p^n >= gamma
+        details["fraction_shown"] = shown
+        ok = n >= need
+        verdict = SATISFIED if ok else UNDECIDED
+        reason = f"max = {_fmt(top, unit)} <= {lim} over {n} run(s)"
+        claim = (
+            f"all {n} runs meet {lim}: with {conf} confidence at least {100 * shown:.3g} % of "
+            f"runs meet it"
+        )
+        if ok:
+            reason += f"; 1 - {p:g}^{n} = {1 - p**n:.4f} >= {gamma:g}"
+            claim += f" (>= {100 * p:g} %); that every run meets it is not shown"
+        else:
+            details["runs_to_decide"] = need
+            reason += (
+                f", but {n} passing runs show the {100 * p:g} % quantile only at "
+                f"{100 * (1 - p**n):.3g} % confidence: at least {need} runs, all passing, needed"
+            )
+            claim += (
+                f", less than {100 * p:g} %; {need} runs, all passing, would show {100 * p:g} %"
+            )
+    return Verdict(
+        req.id,
+        verdict,
+        top,
+        req.limit,
+        unit,
+        reason,
+        interval=(lower, upper),
+        details=details,
+        claim=claim + " (no distribution assumed)",
+        **common,
+    )
+
+
+def _quantile(req: Requirement, values: np.ndarray, common: dict[str, int]) -> Verdict:
+    """``p<q>``: Wilks' order-statistic bounds of the q-th percentile."""
+    unit, n = req.metric_unit, common["n_used"]
+    lim = _fmt(req.limit, unit)
+    name = req.statistic_text
+    p, gamma = float(req.probability), float(req.confidence)
+    conf = f"{100 * gamma:g} %"
+    x = np.sort(values)
+    r_up = wilks_upper_rank(n, p, gamma)
+    r_lo = wilks_lower_rank(n, p, gamma)
+    upper = float(x[r_up - 1]) if r_up is not None else math.inf
+    lower = float(x[r_lo - 1]) if r_lo is not None else -math.inf
+    finite = x[np.isfinite(x)]
+    details = {
+        "sample_quantile": float(np.quantile(x, p)) if finite.size == n else math.nan,
+        "upper_rank": r_up,
+        "lower_rank": r_lo,
+        "runs_needed_for_max": wilks_min_runs(p, gamma),
+        "method": "Wilks",
+    }
+    pct = f"{100 * p:g} %"
+    if r_up is not None and upper <= req.limit:
+        verdict, value = SATISFIED, upper
+        reason = (
+            f"{name} upper bound ({conf} confidence, order statistic {r_up} of {n}) = "
+            f"{_fmt(upper, unit)} <= {lim}"
+        )
+        claim = (
+            f"{pct} of runs meet {lim} with {conf} confidence (the {name} is at most "
+            f"{_fmt(upper, unit)})"
+        )
+    elif r_lo is not None and lower > req.limit:
+        verdict, value = VIOLATED, lower
+        reason = (
+            f"{name} lower bound ({conf} confidence, order statistic {r_lo} of {n}) = "
+            f"{_fmt(lower, unit)} > {lim}"
+        )
+        claim = (
+            f"with {conf} confidence more than {100 * (1 - p):.3g} % of runs exceed {lim} "
+            f"(the {name} is above {_fmt(lower, unit)})"
+        )
+    else:
+        verdict, value = UNDECIDED, upper
+        if r_up is None:
+            details["runs_to_decide"] = details["runs_needed_for_max"]
+            reason = (
+                f"too few runs: a {conf} upper bound of the {name} needs at least "
+                f"{details['runs_needed_for_max']} runs, got {n}"
+            )
+            claim = (
+                f"{n} runs bound the {name} from above at {conf} confidence by nothing: "
+                f"that {pct} of runs meet {lim} is not shown (at least "
+                f"{details['runs_needed_for_max']} runs, all passing, would show it)"
+            )
+        else:
+            reason = (
+                f"the {conf} confidence interval of the {name}, [{_fmt(lower, unit)}, "
+                f"{_fmt(upper, unit)}], contains the bound {lim}: more runs needed"
+            )
+            claim = (
+                f"with {conf} confidence the {name} lies in [{_fmt(lower, unit)}, "
+                f"{_fmt(upper, unit)}]: neither that {pct} of runs meet {lim} nor that they "
+                f"do not is shown"
+            )
+    return Verdict(
+        req.id,
+        verdict,
+        value,
+        req.limit,
+        unit,
+        reason,
+        interval=(lower, upper),
+        details=details,
+        claim=claim + " (no distribution assumed)",
         **common,
     )
 
