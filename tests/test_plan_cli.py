@@ -25,6 +25,8 @@ import sys
 import time
 from pathlib import Path
 
+import pytest
+
 TESTS = Path(__file__).resolve().parent
 
 SCENARIO = """
@@ -182,3 +184,28 @@ def test_until_decided_reports_undecided_at_the_cap(tmp_path: Path) -> None:
     assert "RATE-50: satisfied after 10 runs (look 2)" in res.stdout
     bad = run(tmp_path, "verify", tiny(tmp_path), "--max-runs", 10, "--report", tmp_path / "x")
     assert bad.returncode == 3 and "add --until-decided" in bad.stderr
+
+
+@pytest.mark.slow  # a Dask LocalCluster starts in about 10 s, the looks in another 20 s
+def test_until_decided_on_a_dask_cluster_runs_the_same_runs(tmp_path: Path) -> None:
+    """Each look goes through run_campaign(cluster=...): the runs of a local campaign."""
+    distributed = pytest.importorskip("distributed")
+    from cosim.verify.campaign import run_campaign
+    from cosim.verify.sequential import run_until_decided
+
+    scenario = tiny(tmp_path)
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+        dashboard_address=None,
+    ) as cluster:  # fmt: skip
+        campaign = run_until_decided(
+            scenario, tmp_path / "dask", runs=5, max_runs=10,
+            cluster=cluster.scheduler_address, progress=False,
+        )  # fmt: skip
+    assert campaign.execution["cluster"].startswith("tcp://127.0.0.1:")
+    assert campaign.execution["sequential"]["looks"] == [5, 10] and len(campaign.records) == 10
+    assert [v.verdict for v in campaign.verdicts] == ["satisfied", "undecided"]
+    fixed = run_campaign(scenario, tmp_path / "fixed", runs=10, workers=1, progress=False)
+    assert (tmp_path / "dask/metrics.csv").read_text() == fixed.out_dir.joinpath(
+        "metrics.csv"
+    ).read_text()
