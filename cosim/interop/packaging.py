@@ -1,8 +1,18 @@
 """Pack the block classes of ``models/`` into FMI 2.0 co-simulation FMUs with pythonfmu.
 
-Each FMU holds a two-line entry script that imports its class, plus a copy of the
-``models`` package in its resources; numpy, scipy and pythonfmu come from the
-Python interpreter that loads the FMU.
+Each FMU holds a short entry script that imports its class, plus a copy of the
+``models`` package in its resources; numpy, scipy and pythonfmu (:data:`REQUIREMENTS`)
+come from the Python interpreter that loads the FMU. When one of them is missing there,
+the entry script stands in for the class: ``fmi2Instantiate`` sends one error-level
+message (``fmi2Error``, category ``logStatusError``) through the host's logger callback,
+naming the package and the install command, also with debug logging off, and fails.
+pythonfmu 0.7 itself forwards no message unless debug logging is on, so the stand-in
+calls the host's logger directly: it reads the callback from pythonfmu's logger object
+(passed to the class as ``kwargs['logger']``), whose layout it checks against the
+instance name before use, and only for the pythonfmu versions in
+:data:`LOGGER_LAYOUT_VERSIONS` (the binary is packed into the FMU at build time, so the
+version that builds is the version that runs). Otherwise the message still ends the
+instantiation, visible with debug logging.
 """
 
 from __future__ import annotations
@@ -69,8 +79,97 @@ if _previous is not None:
             if _key == "models" or _key.startswith("models."):
                 del sys.modules[_key]
 
-from {module} import {name}  # noqa: E402,F401
+try:
+    from {module} import {name}  # noqa: E402,F401
+except ImportError as _error:
+    # A package the model needs is missing from the Python that loads this FMU. Stand in
+    # for the class so that instantiation reaches Python: the stand-in reports through
+    # the host's logger (error level) and fails the instantiation.
+    _package = (getattr(_error, "name", None) or "").split(".")[0] or str(_error)
+    sys.__dict__.setdefault("_ins_cosim_fmu_missing", {{}})["{name}"] = (_package, str(_error))
+    try:
+        from pythonfmu import Fmi2Slave
+    except ImportError:  # pythonfmu's binary finds the class by its base's name
+
+        class Fmi2Slave:
+            pass
+
+    class {name}(Fmi2Slave):
+        def __init__(self, **kwargs):
+            import sys
+
+            package, error = sys._ins_cosim_fmu_missing["{name}"]
+            install = sys.executable + " -m pip install " + package
+            message = (
+                "{name}.fmu needs the Python package '" + package + "' in the Python that "
+                "loads it (" + sys.executable + "): " + error + ". Install it with: " + install
+                + " (this FMU needs {requirements})"
+            )
+            if {layout_known}:
+                self._ins_cosim_log(kwargs, message)
+            raise ImportError(message)
+
+        def do_step(self, current_time, step_size):  # never reached: __init__ raises
+            return False
+
+        @staticmethod
+        def _ins_cosim_log(kwargs, message):
+            # pythonfmu {pythonfmu_version}'s logger object (kwargs['logger']): a vtable, a
+            # flag, the instance name (std::string), the categories (std::vector), and the
+            # host's fmi2CallbackFunctions; checked by the instance name before use.
+            import ctypes
+
+            address = kwargs.get("logger")
+            name = str(kwargs.get("instance_name", "")).encode()
+            if not address:
+                return
+            words = ctypes.cast(address, ctypes.POINTER(ctypes.c_void_p))
+            if words[3] != len(name) or not words[2]:
+                return
+            if ctypes.string_at(words[2], words[3]) != name or not words[9]:
+                return
+            functions = ctypes.cast(words[9], ctypes.POINTER(ctypes.c_void_p))
+            if not functions[0]:
+                return
+            logger = ctypes.CFUNCTYPE(
+                None, ctypes.c_void_p, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p,
+                ctypes.c_char_p,
+            )(functions[0])
+            text = message.replace("%", "%%").encode()
+            logger(functions[4], name, 3, b"logStatusError", text)
 """
+
+#: What every FMU built here needs in the Python interpreter that loads it.
+REQUIREMENTS = ("numpy", "scipy", "pythonfmu")
+#: pythonfmu versions whose logger layout the entry script reads (see ENTRY_SCRIPT).
+LOGGER_LAYOUT_VERSIONS = ("0.7.",)
+
+
+def entry_script(module: str, name: str) -> str:
+    """The entry script of the FMU of class ``module.name`` (see :data:`ENTRY_SCRIPT`).
+
+    Parameters
+    ----------
+    module : str
+        The class's module (``models.gauss_markov``).
+    name : str
+        The class name, also the FMU's model identifier.
+
+    Returns
+    -------
+    str
+        Python source.
+    """
+    import pythonfmu
+
+    version = pythonfmu.__version__
+    return ENTRY_SCRIPT.format(
+        module=module,
+        name=name,
+        requirements=", ".join(REQUIREMENTS),
+        pythonfmu_version=version,
+        layout_known=version.startswith(LOGGER_LAYOUT_VERSIONS),
+    )
 
 
 def build_fmu(cls: type[Block], out_dir: Path, extra_files: tuple[Path, ...] = ()) -> Path:
@@ -96,7 +195,7 @@ def build_fmu(cls: type[Block], out_dir: Path, extra_files: tuple[Path, ...] = (
     out_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="ins_cosim_fmu_") as tmp:
         script = Path(tmp) / f"{cls.__name__}_fmu.py"
-        script.write_text(ENTRY_SCRIPT.format(module=cls.__module__, name=cls.__name__))
+        script.write_text(entry_script(cls.__module__, cls.__name__))
         return FmuBuilder.build_FMU(
             script,
             dest=out_dir / f"{cls.__name__}.fmu",
