@@ -93,9 +93,10 @@ def test_level_regression_matches_the_model(static_report: tuple[dict, str]) -> 
     A horizontal accelerometer bias tilts the computed vertical by nabla / g (seed 003's
     levels settle in ~50 s), so the slope of the roll error on the east bias and of the
     pitch error on the north bias tends to 1/g = 0.00344' per ug in magnitude (the
-    window's mean, from 30 s on, a little less); the linear model predicts it, and the campaign's slope agrees within three standard errors
-    (Student-t with 12 - 6 = 6 degrees of freedom: |t| > 3 in 2.4 % of campaigns; seed
-    2024 fixed). The bias makes most of the level variance, so the fit is sharp.
+    window's mean, from 30 s on, a little less); the linear model predicts it, and the
+    campaign's slope agrees within three standard errors (Student-t with 12 - 6 = 6
+    degrees of freedom: |t| > 3 in 2.4 % of campaigns; seed 2024 fixed). The bias makes
+    most of the level variance, so the fit is sharp.
     """
     data, _ = static_report
     per_ug = MICRO_G / G0 / ARCMIN
