@@ -36,11 +36,11 @@ from cosim.interop.cbuild import build_c_fmu
 from cosim.interop.ssp import export_ssp
 from cosim.interop.ssp_import import SspImportError, load_ssp
 from cosim.scenario import build_master
+from models.constants import DEG, DEG_PER_HOUR, G0
 
 pytestmark = pytest.mark.filterwarnings("ignore::cosim.wiring.UnconnectedInputWarning")
 ROOT = Path(__file__).resolve().parents[1]
 FIXTURES = ROOT / "tests" / "fixtures"
-DEG = math.pi / 180
 
 SSD = """<?xml version="1.0" encoding="UTF-8"?>
 <ssd:SystemStructureDescription version="1.0" name="DeckSensors"
@@ -222,7 +222,7 @@ def test_a_hand_written_archive_reads_as_its_parts(third_party: Path) -> None:
     assert sc.blocks["decay"].parameters["k"] == pytest.approx(0.1, rel=1e-15)
     assert sc.blocks["echo"].parameters == {"p_real": 1.5}  # system level, Component.var
     imu = sc.blocks["imu"].parameters
-    assert imu["GyroBias_X"] == pytest.approx(1e-5 * 3600 / DEG, rel=1e-15)  # rad/s -> deg/h
+    assert imu["GyroBias_X"] == pytest.approx(1e-5 / DEG_PER_HOUR, rel=1e-15)  # rad/s -> deg/h
     assert imu["NoiseSeed"] == 11
 
 
@@ -234,7 +234,7 @@ def test_the_connections_carry_the_ssp_factors(third_party: Path) -> None:
         master.terminate()
     assert factors["ship.omega_ib_b[1] -> imu.AngRate_X"] == pytest.approx(1 / DEG, rel=1e-15)
     assert factors["ship.omega_ib_b[2] -> imu.AngRate_Y"] == 2.0  # suppressed: only the factor
-    assert factors["ship.f_b[1] -> imu.SpecForce_X"] == pytest.approx(1 / 9.80665, rel=1e-15)
+    assert factors["ship.f_b[1] -> imu.SpecForce_X"] == pytest.approx(1 / G0, rel=1e-15)
     assert factors["decay.x -> echo.u_real"] == 2.5
 
 

@@ -86,10 +86,27 @@ class _Link:
 
 @dataclass
 class SspScenario(Scenario):
-    """A scenario read from an SSP archive (see the module docstring).
+    """A scenario read from an SSP archive (see the module docstring), made by
+    :func:`load_ssp`.
 
     Attributes
     ----------
+    path : Path
+        The ``.ssp`` archive.
+    sha256 : str
+        Hash of the archive's bytes.
+    name : str
+        The ``.ssd``'s name.
+    settings : MasterSettings
+        Step, stop, start and coupling (see :func:`load_ssp`).
+    blocks : dict
+        Component name -> :class:`~cosim.scenario.BlockSpec` of its unpacked FMU.
+    connections : list of str
+        The connections as ``"a.x -> b.u"``.
+    outputs : None
+        Every output is recorded.
+    raw : dict
+        ``scenario.name`` and the archive path (no requirements or campaign).
     links : list
         The archive's connections with their linear-transformation factors and whether
         unit conversion is suppressed (applied by :meth:`build`).
