@@ -55,7 +55,17 @@ SSD = """<?xml version="1.0" encoding="UTF-8"?>
         <ssd:ParameterValues>
           <ssv:ParameterSet version="1.0" name="system-level">
             <ssv:Parameters>
-              <ssv:Parameter name="echo.p_real"><ssv:Real value="1.5"/></ssv:Parameter>
+              <ssv:Parameter name="decay.x0"><ssv:Real value="1.0"/></ssv:Parameter>
+            </ssv:Parameters>
+          </ssv:ParameterSet>
+        </ssd:ParameterValues>
+      </ssd:ParameterBinding>
+      <ssd:ParameterBinding prefix="echo.">
+        <ssd:ParameterValues>
+          <ssv:ParameterSet version="1.0" name="echo-own">
+            <ssv:Parameters>
+              <ssv:Parameter name="p_real"><ssv:Real value="1.5"/></ssv:Parameter>
+              <ssv:Parameter name="u_enum"><ssv:Enumeration value="high"/></ssv:Parameter>
             </ssv:Parameters>
           </ssv:ParameterSet>
         </ssd:ParameterValues>
@@ -219,8 +229,10 @@ def test_a_hand_written_archive_reads_as_its_parts(third_party: Path) -> None:
     assert ship["lat0"] == 45 * DEG  # ssv:Units of the .ssv
     assert ship["amp[1]"] == 10 * DEG  # ssd:Units
     assert ship["period[1]"] == pytest.approx(12.0, rel=1e-15)  # 'min' parsed by name
-    assert sc.blocks["decay"].parameters["k"] == pytest.approx(0.1, rel=1e-15)
-    assert sc.blocks["echo"].parameters == {"p_real": 1.5}  # system level, Component.var
+    decay = sc.blocks["decay"].parameters
+    assert decay["k"] == pytest.approx(0.1, rel=1e-15) and decay["x0"] == 1.0  # system level
+    # system level with prefix="echo.": the set's bare names bind to the echo component
+    assert sc.blocks["echo"].parameters == {"p_real": 1.5, "u_enum": "high"}
     imu = sc.blocks["imu"].parameters
     assert imu["GyroBias_X"] == pytest.approx(1e-5 / DEG_PER_HOUR, rel=1e-15)  # rad/s -> deg/h
     assert imu["NoiseSeed"] == 11
@@ -257,6 +269,7 @@ def test_the_archive_runs_as_the_same_system_written_in_toml(
     x, y = ours["decay.x"], ours["echo.y_real"]
     assert y[1:].tolist() == (1.5 + x[:-1] * 2.5).tolist()
     assert x[-1] == pytest.approx(math.exp(-0.1 * 2.0), rel=1e-6)
+    assert ours["echo.y_enum"].tolist() == [3.0] * 21  # the item 'high' by name
 
 
 def bad(text: str, old: str, new: str) -> str:

@@ -16,8 +16,9 @@ records and is checked like a TOML scenario. What is read from ``SystemStructure
   the (converted) value by its ``factor`` (a non-zero ``offset`` is refused);
 - ``ssd:ParameterBinding`` of a component or of the system, with its parameter set
   inline (``ssd:ParameterValues/ssv:ParameterSet``) or in an ``.ssv`` file of the archive
-  (``source=``), optionally with a ``prefix`` (removed from the parameter names; at system
-  level a parameter is named ``Component.variable``); ``ssv:Real`` values with a ``unit``
+  (``source=``), optionally with a ``prefix`` (prepended to the set's names, as SSP says:
+  at system level a parameter is named ``Component.variable``, so a component's own set
+  binds there with ``prefix="Component."``); ``ssv:Real`` values with a ``unit``
   are converted to the FMU's unit (units from the set's ``ssv:Units``, the SSD's
   ``ssd:Units``, or parsed from the name), ``ssv:Enumeration`` values are item names;
 - ``ssd:Units`` (``ssc:Unit`` / ``ssc:BaseUnit``);
@@ -453,7 +454,7 @@ def _bind(
             pwhere = f"Parameter '{pname}'" + (
                 f" ({bwhere})" if file != "SystemStructure.ssd" else f" of {bwhere}"
             )
-            name = pname[len(prefix) :] if prefix and pname.startswith(prefix) else pname
+            name = prefix + pname  # SSP: the prefix is prepended to the set's names
             target = component
             if target is None:
                 target, dot, name = name.partition(".")
