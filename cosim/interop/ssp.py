@@ -41,6 +41,11 @@ SSP 1.0 does not know (Float32, Int8..UInt64, Binary, Clock) are left out and li
 
 The prefixes ``ssd``, ``ssc``, ``ssv`` and ``osp`` are the ones the standard uses; keep
 them (libcosim's reader matches the prefixed element names).
+
+The other direction is :mod:`cosim.interop.ssp_import` (``ins-cosim run|check x.ssp``):
+an exported archive read back runs to the scenario's results (1e-12), and the same
+archive gives the same outputs in ins-cosim, libcosim and fmpy
+(:mod:`cosim.interop.fmpy_ssp`) with Jacobi coupling (tests/test_three_masters.py).
 """
 
 from __future__ import annotations
