@@ -30,6 +30,7 @@ import heapq
 import math
 import numbers
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -415,8 +416,16 @@ class Master:
                 stacklevel=3,
             )
 
-    def run(self) -> RunResult:
+    def run(self, on_row: Callable[[np.ndarray], None] | None = None) -> RunResult:
         """Initialise every block, step to the stop time, and return the recording.
+
+        Parameters
+        ----------
+        on_row : callable, optional
+            Called with each recorded row as soon as it is written: a float64 view,
+            shape (1 + recorded columns,), time [s] first, then the columns in SI units
+            (text columns NaN); copy it to keep it (:mod:`cosim.isolate` streams the rows
+            of an isolated run to its parent this way).
 
         Returns
         -------
@@ -499,6 +508,8 @@ class Master:
                     table[row, cols] = np.nan
                 else:  # Integer, Boolean, Enumeration, FMI 3 numbers: exact up to 2**53
                     table[row, cols] = [float(x) for x in got]
+            if on_row is not None:
+                on_row(table[row])
 
         def transfer(host: BlockHost, vrs: list[int], idx: np.ndarray, factor, source) -> None:
             if vrs:

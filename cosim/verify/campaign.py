@@ -34,6 +34,7 @@ import numpy as np
 
 from cosim.errors import ScenarioError
 from cosim.scenario import Scenario, build_master, load_scenario
+from cosim.verify.lock import holding_report_folder
 from cosim.verify.records import RunRecord, read_records, save_record, write_metrics_table
 from cosim.verify.requirements import Requirement, Verdict, check_windows, load_requirements
 from cosim.verify.seeds import SEED_RULE, Stratified, run_seeds, stratified_draws
@@ -473,6 +474,7 @@ def _check_resume(old: dict[str, Any], new: dict[str, Any], out_dir: Path) -> No
         )
 
 
+@holding_report_folder("out_dir")  # one campaign at a time in a report folder
 def run_campaign(
     scenario: str | Path,
     out_dir: str | Path,
@@ -485,6 +487,7 @@ def run_campaign(
     resume: bool = False,
     progress: bool = True,
     only_runs: Sequence[int] | None = None,
+    rerun_crashed: bool = False,
 ) -> Campaign:
     """Run (or resume) a Monte Carlo campaign and judge its requirements.
 
@@ -510,6 +513,8 @@ def run_campaign(
     only_runs : sequence of int, optional
         Run (and judge) only these runs of the campaign of ``runs`` runs: each has the
         seeds and stratified draws it has in the whole campaign.
+    rerun_crashed : bool
+        With ``resume``: run again the runs recorded as crashed (their worker died).
 
     Returns
     -------
@@ -566,11 +571,13 @@ def run_campaign(
         for f in (*runs_dir.glob("run_*"), *runs_dir.glob(".run_*"), *stale):
             f.unlink(missing_ok=True)
     out.mkdir(parents=True, exist_ok=True)
-    manifest_file.write_text(json.dumps(manifest, indent=2) + "\n")
+    from cosim.verify.records import write_atomic  # readers never see half a manifest
+
+    write_atomic(manifest_file, json.dumps(manifest, indent=2) + "\n")
     for tmp in runs_dir.glob(".run_*.tmp"):
         tmp.unlink()
 
-    finished = read_records(runs_dir, settings.runs) if resume else {}
+    finished = read_records(runs_dir, settings.runs, crashed=not rerun_crashed) if resume else {}
     wanted = sorted(set(only_runs)) if only_runs is not None else list(range(settings.runs))
     todo = [i for i in wanted if i not in finished]
     jobs = campaign_jobs(prep, settings.seed, settings.runs, indices=todo)

@@ -5,6 +5,8 @@ On disk, under a report folder's ``runs/``::
     run_00042.json    one finished run: seeds, status, error, metrics per requirement
     run_00042.npz     its decimated histories: time, e_<k> and s_<k> per requirement k
 
+Every file of a report folder is written to a temporary name in the same folder and
+renamed into place (:func:`write_atomic`), so a reader never sees a half-written file.
 Full recorded columns (``keep`` of :class:`cosim.verify.workers.WorkerSpec`, what the
 reproductions analyse) stay in memory and are not written.
 """
@@ -12,6 +14,7 @@ reproductions analyse) stay in memory and are not written.
 from __future__ import annotations
 
 import csv
+import io
 import json
 import math
 import os
@@ -36,9 +39,12 @@ class RunRecord:
     seeds : dict
         Block -> seed used.
     status : str
-        ``"completed"`` or ``"failed"``.
+        ``"completed"``, ``"failed"`` (the run stopped: a block error or a non-finite
+        output) or ``"crashed"`` (the worker process running it died twice: a signal or
+        an exit code; no metric, no history).
     error : str
-        The failure message (block, variable or call, time), else empty.
+        The failure message (block, variable or call, time; for a crash the signal or
+        exit code and the block that was stepping), else empty.
     metrics : dict
         Requirement id -> :class:`RunMetric`, or None for a failed run.
     history : dict
@@ -179,6 +185,36 @@ def run_stem(index: int) -> str:
     return f"run_{index:05d}"
 
 
+def write_atomic(path: Path, data: str | bytes) -> Path:
+    """Write a file so that a reader sees either the old file or all of the new one.
+
+    The data go to a temporary file in the same folder (same file system), which is
+    then renamed over ``path`` (:func:`os.replace`, atomic on POSIX).
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+    data : str or bytes
+        Its new content (text is written as UTF-8).
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "wb") as fh:
+            fh.write(data.encode("utf-8") if isinstance(data, str) else data)
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
 def save_record(record: RunRecord, runs_dir: Path) -> None:
     """Write ``run_<i>.npz`` then ``run_<i>.json`` (the marker of a finished run).
 
@@ -203,7 +239,9 @@ def save_record(record: RunRecord, runs_dir: Path) -> None:
     os.replace(tmp, runs_dir / f"{stem}.json")
 
 
-def read_records(runs_dir: Path, runs: int | None = None) -> dict[int, RunRecord]:
+def read_records(
+    runs_dir: Path, runs: int | None = None, *, crashed: bool = True
+) -> dict[int, RunRecord]:
     """Finished runs on disk.
 
     Parameters
@@ -212,6 +250,9 @@ def read_records(runs_dir: Path, runs: int | None = None) -> dict[int, RunRecord
         ``<report>/runs``.
     runs : int, optional
         Only runs ``0 .. runs - 1``.
+    crashed : bool
+        Include the runs recorded as crashed (False: ``--resume --rerun-crashed`` runs
+        them again).
 
     Returns
     -------
@@ -229,6 +270,8 @@ def read_records(runs_dir: Path, runs: int | None = None) -> dict[int, RunRecord
                 history = {k: z[k] for k in z.files}
         except (OSError, ValueError, KeyError):
             continue  # unreadable: run it again
+        if not crashed and d.get("status") == "crashed":
+            continue
         if runs is None or d["index"] < runs:
             out[int(d["index"])] = RunRecord.from_dict(d, history)
     return out
@@ -397,8 +440,8 @@ def write_metrics_table(campaign: Any, path: Path) -> Path:
     -------
     Path
     """
-    with open(path, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(metrics_columns(campaign))
-        w.writerows(metrics_rows(campaign))
-    return path
+    buffer = io.StringIO(newline="")
+    w = csv.writer(buffer)
+    w.writerow(metrics_columns(campaign))
+    w.writerows(metrics_rows(campaign))
+    return write_atomic(path, buffer.getvalue())

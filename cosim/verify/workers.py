@@ -6,12 +6,24 @@ parameters on a copy of the built system's own before the run. A run's numbers d
 only on its job (seeds, parameters, stratified draws), never on the worker that ran it.
 
 - ``workers == 1``: in this process, one after the other.
-- ``workers > 1``: a :class:`ProcessPoolExecutor` whose processes are forked from a
-  ``forkserver`` that imported the simulation code once (where the platform has no
-  ``forkserver``: spawned processes); each builds the blocks in its initializer.
+- ``workers > 1``: worker processes forked from a ``forkserver`` that imported the
+  simulation code once (where the platform has no ``forkserver``: spawned processes);
+  each builds the blocks when it starts and runs one job at a time, sent to it through
+  its own pipe, so the parent always knows which run each process is running.
 - ``cluster = "tcp://host:8786"``: a Dask distributed cluster; each worker thread builds
   the blocks once on its first run. The workers must see the scenario and FMU files at
   the same paths (a shared file system).
+
+A worker process that dies (an FMU calling ``abort()``, a segmentation fault, a model
+calling ``os._exit``, the kernel's OOM killer) loses only the run it was running: the
+parent sees its pipe close, reads what the process last noted on its
+:class:`cosim.isolate.StepBoard` (the block that was stepping, the time), starts a
+fresh process in its place and runs that run again first. A run whose worker dies
+:data:`CRASH_ATTEMPTS` times is recorded as ``"crashed"`` (its seeds, the signal or exit
+code, the block and time), a failed run for the requirements' ``on_failure``, and the
+campaign goes on. On Dask the scheduler retries a task whose worker died and gives up
+after ``distributed.scheduler.allowed-failures`` deaths (``KilledWorker``): that run is
+recorded as crashed (without the block: Dask workers keep no board).
 """
 
 from __future__ import annotations
@@ -19,7 +31,9 @@ from __future__ import annotations
 import contextlib
 import copy
 import multiprocessing
+import multiprocessing.connection
 import os
+import pickle
 import signal
 import socket
 import sys
@@ -34,12 +48,17 @@ from typing import Any
 import numpy as np
 
 from cosim.errors import SimulationError, UserError
+from cosim.isolate import IDLE, LOADING, StepBoard, describe_death, describe_exit, watch
 from cosim.scenario import build_master, load_scenario
 from cosim.verify.records import RunRecord, decimation
 from cosim.verify.requirements import Requirement, RunMetric, error_signal, evaluate
 
 #: Modules the forkserver imports once, so that forked workers start without imports.
 PRELOAD = ["cosim.verify.workers", "cosim.alignment", "models"]
+#: A run whose worker process dies this many times is recorded as crashed.
+CRASH_ATTEMPTS = 2
+#: Worker processes that may die before they are ready (building the blocks) in a row.
+MAX_START_FAILURES = 3
 
 
 class CampaignError(UserError):
@@ -156,6 +175,8 @@ class _State:
         self.master = build_master(
             scenario, fmu_dir=spec.fmu_dir, stop=spec.stop, record_every=spec.record_every
         )
+        if _BOARD is not None:  # a local worker process: note each block call
+            watch(self.master.system.blocks, _BOARD)
         self.settings = self.master.settings
         self.system = self.master.system
         self.base = copy.deepcopy(self.system.parameters)
@@ -186,6 +207,7 @@ class _State:
 
 
 _LOCAL = threading.local()
+_BOARD: StepBoard | None = None  # set in a local worker process
 
 
 def worker_id() -> str:
@@ -215,20 +237,6 @@ def release_worker_state() -> None:
     if state is not None:
         state.close()
         _LOCAL.state = None
-
-
-def _init_process_worker(spec: WorkerSpec) -> None:
-    """ProcessPoolExecutor initializer: Ctrl-C is the parent's business; build once.
-
-    The blocks are terminated when the worker process exits (FMU instances freed, their
-    unpacked folders removed): a multiprocessing finalizer, since worker processes end
-    without running ``atexit`` handlers.
-    """
-    from multiprocessing import util
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    _state(spec)
-    util.Finalize(None, release_worker_state, exitpriority=10)
 
 
 def run_one(spec: WorkerSpec, job: Job) -> RunRecord:
@@ -369,39 +377,208 @@ def run_jobs(
             release_worker_state()
 
 
+def crashed_record(
+    spec: WorkerSpec, job: Job, error: str, worker: str = "", t_end: float = float("nan")
+) -> RunRecord:
+    """The record of a run whose worker process died (no metric, no history).
+
+    Parameters
+    ----------
+    spec : WorkerSpec
+        The campaign (its requirements get no metric).
+    job : Job
+        The run.
+    error : str
+        How the worker died, and where (block, time) when known.
+    worker : str
+        ``host:pid`` of the (last) process that died running it.
+    t_end : float
+        The simulated time of the death [s], when known.
+
+    Returns
+    -------
+    RunRecord
+        ``status = "crashed"``.
+    """
+    return RunRecord(
+        index=job.index,
+        seeds=dict(job.seeds),
+        status="crashed",
+        error=error,
+        metrics={r.id: None for r in spec.requirements},
+        worker=worker,
+        t_end=t_end,
+        tag=job.tag,
+    )
+
+
+def _exit_on_terminate(signum: int, frame: Any) -> None:
+    raise SystemExit(128 + signum)  # unwinds: the blocks are terminated, folders removed
+
+
+def _picklable(exc: BaseException) -> BaseException:
+    try:
+        pickle.loads(pickle.dumps(exc))
+        return exc
+    except Exception:
+        return CampaignError(f"{type(exc).__name__}: {exc}")
+
+
+def _worker_main(spec: WorkerSpec, conn: Any, raw: Any) -> None:
+    """A local worker process: build the blocks, then run the jobs the parent sends.
+
+    Messages to the parent: ``("ready",)`` once built, ``("done", record)`` per job,
+    ``("error", exception)`` when it cannot go on; a job of None ends the process.
+    """
+    global _BOARD
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's business
+    signal.signal(signal.SIGTERM, _exit_on_terminate)
+    _BOARD = StepBoard(raw)
+    _BOARD.post(LOADING)
+    try:
+        try:
+            _state(spec)
+        except Exception as exc:
+            conn.send(("error", _picklable(exc)))
+            return
+        _BOARD.post(IDLE)
+        conn.send(("ready",))
+        while True:
+            try:
+                job = conn.recv()
+            except EOFError:  # the parent is gone
+                return
+            if job is None:
+                return
+            try:
+                record = run_one(spec, job)
+            except Exception as exc:  # a scenario that changed on disk, or a bug
+                conn.send(("error", _picklable(exc)))
+                return
+            _BOARD.post(IDLE)
+            conn.send(("done", record))
+    finally:
+        release_worker_state()
+
+
+class _Process:
+    """One local worker process, its pipe and its board, and the job it runs."""
+
+    def __init__(self, ctx: Any, spec: WorkerSpec) -> None:
+        self.board = StepBoard.shared(ctx)
+        self.conn, child = ctx.Pipe()
+        self.proc = ctx.Process(
+            target=_worker_main, args=(spec, child, self.board.raw), daemon=True
+        )
+        self.proc.start()
+        child.close()
+        self.ready = False
+        self.job: Job | None = None
+
+    def give(self, job: Job) -> None:
+        self.job = job
+        self.conn.send(job)
+
+    def receive(self) -> tuple[Any, ...] | None:
+        """The next message, or None when the process has died (its pipe closed)."""
+        try:
+            if self.conn.poll():
+                return self.conn.recv()
+        except (EOFError, OSError):
+            pass
+        if self.proc.is_alive():
+            return ("nothing",)
+        return None
+
+    def death(self) -> tuple[str, str, float]:
+        """``(how, where, time)``: the signal or exit code, the block and time noted."""
+        self.proc.join(5)
+        with contextlib.suppress(Exception):
+            self.conn.close()
+        where, _block, t = describe_death(self.board)
+        return describe_exit(self.proc.exitcode), where, t
+
+    def stop(self, wait: float) -> None:
+        with contextlib.suppress(Exception):
+            if self.proc.is_alive():
+                if wait:
+                    self.conn.send(None)
+                else:
+                    self.proc.terminate()  # SIGTERM: it unwinds and frees its blocks
+                self.proc.join(wait or 5)
+            if self.proc.is_alive():
+                self.proc.kill()
+                self.proc.join(5)
+        with contextlib.suppress(Exception):
+            self.conn.close()
+
+
 def _run_pool(
     spec: WorkerSpec, jobs: list[Job], done: Callable[[RunRecord], None], workers: int
 ) -> None:
-    from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-
-    pool = ProcessPoolExecutor(
-        max_workers=min(workers, len(jobs)),
-        mp_context=pool_context(),
-        initializer=_init_process_worker,
-        initargs=(spec,),
-    )
+    """Run jobs on local worker processes, one job per process at a time."""
+    ctx = pool_context()
+    queue = list(reversed(jobs))  # pop() takes the next
+    deaths: dict[int, int] = {}
+    start_failures = 0
+    procs = [_Process(ctx, spec) for _ in range(min(workers, len(jobs)))]
     try:
-        pending = {pool.submit(run_one, spec, job) for job in jobs}
-        while pending:
-            finished, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in finished:
-                done(fut.result())
+        while queue or any(p.job is not None for p in procs):
+            for p in procs:
+                if p.ready and p.job is None and queue:
+                    p.give(queue.pop())
+            waiting = {p.conn: p for p in procs} | {p.proc.sentinel: p for p in procs}
+            for p in {waiting[x] for x in multiprocessing.connection.wait(list(waiting))}:
+                msg = p.receive()
+                if msg is not None and msg[0] == "nothing":
+                    continue
+                if msg is not None and msg[0] == "ready":
+                    p.ready, start_failures = True, 0
+                elif msg is not None and msg[0] == "done":
+                    p.job = None
+                    done(msg[1])
+                elif msg is not None and msg[0] == "error":
+                    raise msg[1]
+                else:  # the process died: replace it (if there is work left)
+                    how, where, t = p.death()
+                    job, pid = p.job, p.proc.pid
+                    if job is None:
+                        start_failures += not p.ready
+                        if start_failures >= MAX_START_FAILURES:
+                            raise CampaignError(
+                                f"worker processes die before they can run: the last one "
+                                f"(pid {pid}) {how} {where}; try --workers 1 to see why"
+                            )
+                    else:
+                        deaths[job.index] = deaths.get(job.index, 0) + 1
+                        if deaths[job.index] < CRASH_ATTEMPTS:
+                            queue.append(job)  # again, first, on a fresh process
+                        else:
+                            text = (
+                                f"the worker process (pid {pid}) {how} {where}, in each of "
+                                f"{CRASH_ATTEMPTS} attempts: recorded as crashed "
+                                f"(--resume --rerun-crashed runs it again)"
+                            )
+                            worker = f"{socket.gethostname()}:{pid}"
+                            done(crashed_record(spec, job, text, worker, t))
+                    if queue:
+                        procs[procs.index(p)] = _Process(ctx, spec)
+                    else:
+                        procs.remove(p)
     except BaseException:
-        # Ctrl-C or a crash: drop queued runs and stop the workers now, without waiting
-        # for the runs in progress (they are not on disk and will run again on --resume).
-        procs = list((getattr(pool, "_processes", None) or {}).values())  # no API in 3.11
-        pool.shutdown(wait=False, cancel_futures=True)
-        for proc in procs:
-            with contextlib.suppress(Exception):
-                proc.terminate()
+        # Ctrl-C or an error: stop the workers now, without waiting for the runs in
+        # progress (they are not on disk and will run again on --resume).
+        for p in procs:
+            p.stop(0)
         raise
-    pool.shutdown(wait=True)
+    for p in procs:
+        p.stop(30)
 
 
 def _run_dask(
     spec: WorkerSpec, jobs: list[Job], done: Callable[[RunRecord], None], address: str
 ) -> None:
-    from distributed import Client, as_completed
+    from distributed import Client, KilledWorker, as_completed
 
     try:
         client = Client(address, timeout="30s")
@@ -414,8 +591,14 @@ def _run_dask(
             client.submit(run_one, spec, job, key=f"ins-cosim-run-{token}-{n:05d}")
             for n, job in enumerate(jobs)
         ]
+        job_of = {fut.key: job for fut, job in zip(futures, jobs, strict=True)}
         for fut in as_completed(futures):
-            done(fut.result())
+            try:
+                record = fut.result()
+            except KilledWorker as exc:  # its workers died, again and again
+                text = f"the Dask workers running it died ({exc}); recorded as crashed"
+                record = crashed_record(spec, job_of[fut.key], text)
+            done(record)
     except BaseException:
         with contextlib.suppress(Exception):
             client.cancel(futures)
