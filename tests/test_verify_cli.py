@@ -83,7 +83,7 @@ def test_verify_an_alignment_scenario_with_20_runs(cli, tmp_path: Path) -> None:
     "replace, code, verdict",
     [
         ({'bound = "1.2 arcmin"': 'bound = "0.5 arcmin"'}, 1, "VIOLATED   DEMO-1"),
-        ({'statistic = "max"': 'statistic = "p95"'}, 2, "UNDECIDED  DEMO-1"),
+        ({'statistic = "max"\nprobability = 0.85': 'statistic = "p95"'}, 2, "UNDECIDED  DEMO-1"),
     ],
 )
 def test_exit_code_follows_the_verdicts(cli, tmp_path, replace, code, verdict) -> None:

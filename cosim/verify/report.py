@@ -191,17 +191,18 @@ def write_junit(campaign: Campaign, path: Path, created: str = "") -> Path:
             f"bound: {_bound(v)}\n"
             f"runs: {v.n_runs} ({v.n_failed} failed, {v.n_used} used, {v.n_pass} met the bound)\n"
             f"verdict: {v.verdict}: {v.reason}\n"
+            f"claim: {v.claim}\n"
         )
         if v.verdict == VIOLATED:
             failure = ET.SubElement(
                 case,
                 "failure",
-                message=f"measured {_measured(v)}, bound {_bound(v)}: {v.reason}",
+                message=f"measured {_measured(v)}, bound {_bound(v)}: {v.reason}. {v.claim}",
                 type="violated",
             )
             failure.text = detail
         elif v.verdict == UNDECIDED:
-            ET.SubElement(case, "skipped", message=f"undecided: {v.reason}")
+            ET.SubElement(case, "skipped", message=f"undecided: {v.reason}. Shown: {v.claim}")
         ET.SubElement(case, "system-out").text = detail
     ET.indent(suites)
     path = Path(path)
@@ -260,6 +261,96 @@ def _histories(campaign: Campaign, k: int) -> tuple[np.ndarray | None, np.ndarra
     return t, e, s
 
 
+def judged_window(req: Requirement, t0: float, t1: float) -> tuple[float, float]:
+    """The time span a requirement judges, for its window panel.
+
+    Parameters
+    ----------
+    req : Requirement
+        The requirement.
+    t0, t1 : float
+        The run's start and stop times [s].
+
+    Returns
+    -------
+    (float, float)
+        [s]: ``from``..``until`` of a bound; ``at`` +/- 5 % of the run (at least the
+        span shown, clipped to the run) for a value; the settling deadline to the end for
+        a settling criterion.
+    """
+    if req.criterion == "bound":
+        return (t0 if req.start is None else req.start), (t1 if req.until is None else req.until)
+    if req.criterion == "value":
+        at = t1 if req.at is None else req.at
+        half = 0.05 * (t1 - t0)
+        return max(t0, at - half), min(t1, at + half)
+    return min(t1, t0 + req.limit), t1
+
+
+def window_curves(
+    t: np.ndarray, e: np.ndarray, s: np.ndarray, window: tuple[float, float]
+) -> dict[str, np.ndarray]:
+    """The curves of the window panel, restricted to the window.
+
+    Parameters
+    ----------
+    t : ndarray, shape (m,)
+        Times [s].
+    e : ndarray, shape (n, m)
+        Errors of the completed runs [req.unit].
+    s : ndarray, shape (n, m) or (0, m)
+        Filter 1-sigma of the runs [req.unit].
+    window : (float, float)
+        From :func:`judged_window` [s].
+
+    Returns
+    -------
+    dict
+        ``time`` (k,), ``runs`` (n, k), and when available ``ensemble_lo``/``ensemble_hi``
+        (mean -/+ 3 std over the runs, (k,)) and ``filter_3sigma`` (3 x RMS over the runs
+        of the filter sigma, (k,)); at least the samples next to the window's ends.
+    """
+    a, b = window
+    inside = (t >= a) & (t <= b)
+    if inside.sum() < 2:  # a window shorter than the history's spacing: the nearest samples
+        inside = np.zeros_like(inside)
+        inside[max(0, np.searchsorted(t, a) - 1) : np.searchsorted(t, b) + 1] = True
+    out = {"time": t[inside], "runs": e[:, inside]}
+    if e.shape[0] >= 2:
+        mean, std = e[:, inside].mean(axis=0), e[:, inside].std(axis=0, ddof=1)
+        out["ensemble_lo"], out["ensemble_hi"] = mean - 3 * std, mean + 3 * std
+    if s.shape[0]:
+        out["filter_3sigma"] = 3 * np.sqrt(np.mean(s[:, inside] ** 2, axis=0))
+    return out
+
+
+def window_ylim(req: Requirement, curves: dict[str, np.ndarray]) -> tuple[float, float]:
+    """y-range of the window panel: the window's data and the bound, 8 % margin.
+
+    Parameters
+    ----------
+    req : Requirement
+        The requirement (its bound, or band for settling).
+    curves : dict
+        From :func:`window_curves`.
+
+    Returns
+    -------
+    (float, float)
+        [req.unit].
+    """
+    bound = req.band if req.criterion == "settling" else req.limit
+    parts = [np.array([bound, -bound if (req.absolute or req.criterion == "settling") else 0.0])]
+    parts += [np.ravel(curves[k]) for k in ("runs", "ensemble_lo", "ensemble_hi") if k in curves]
+    if "filter_3sigma" in curves:
+        parts += [curves["filter_3sigma"], -curves["filter_3sigma"]]
+    values = np.concatenate(parts)
+    values = values[np.isfinite(values)]
+    lo, hi = float(values.min()), float(values.max())
+    pad = 0.08 * (hi - lo) if hi > lo else max(abs(hi), 1.0) * 0.1
+    return lo - pad, hi + pad
+
+
 def _draw_limits(ax: plt.Axes, req: Requirement, t0: float, t1: float) -> None:
     style = {"color": "#cf222e", "lw": 1.6}
     if req.criterion == "bound":
@@ -284,12 +375,21 @@ def _draw_limits(ax: plt.Axes, req: Requirement, t0: float, t1: float) -> None:
         ax.axvline(t0 + req.limit, color=style["color"], ls=":", lw=1.0)
 
 
-def requirement_figure(campaign: Campaign, req: Requirement, verdict: Verdict) -> str:
-    """The requirement's figure as base64 PNG.
+def _draw_ensemble(ax: plt.Axes, t: np.ndarray, curves: dict[str, np.ndarray]) -> None:
+    """Runs (grey), ensemble mean +/-3 sigma (dashed black), filter +/-3 sigma (blue)."""
+    for i, row in enumerate(curves["runs"][:_MAX_LINES]):
+        ax.plot(t, row, lw=0.6, alpha=0.45, color="#57606a", label="runs" if i == 0 else None)
+    if "ensemble_hi" in curves:
+        ax.plot(t, curves["ensemble_hi"], "k--", lw=1.1, label="ensemble mean ±3σ")
+        ax.plot(t, curves["ensemble_lo"], "k--", lw=1.1)
+    if "filter_3sigma" in curves:
+        f = curves["filter_3sigma"]
+        ax.plot(t, f, color="#0969da", lw=1.3, label="filter ±3σ (RMS over runs)")
+        ax.plot(t, -f, color="#0969da", lw=1.3)
 
-    Panels: error vs time (runs, ensemble mean +/-3 sigma, filter +/-3 sigma, bounds);
-    Monte Carlo envelope (min-max and 5-95 % bands, median, bounds); histogram of the
-    per-run metric with the limit and the statistic.
+
+def build_requirement_figure(campaign: Campaign, req: Requirement, verdict: Verdict) -> plt.Figure:
+    """The requirement's figure (see :func:`requirement_figure`) as a matplotlib Figure.
 
     Parameters
     ----------
@@ -302,33 +402,31 @@ def requirement_figure(campaign: Campaign, req: Requirement, verdict: Verdict) -
 
     Returns
     -------
-    str
-        Base64 of the PNG.
+    matplotlib.figure.Figure
+        Axes labelled ``"error"``, ``"window"``, ``"envelope"``, ``"histogram"``.
     """
     k = campaign.requirements.index(req)
     t, e, s = _histories(campaign, k)
     master = campaign.provenance["master"]
     t0, t1 = master["start"], master["stop"]
-    fig = plt.figure(figsize=(10.5, 7.2))
-    grid = fig.add_gridspec(2, 2, height_ratios=[1.1, 1.0])
-    ax1 = fig.add_subplot(grid[0, :])
-    ax2 = fig.add_subplot(grid[1, 0], sharex=ax1)
-    ax3 = fig.add_subplot(grid[1, 1])
+    fig = plt.figure(figsize=(10.5, 10.0))
+    grid = fig.add_gridspec(3, 2, height_ratios=[1.0, 1.0, 1.0])
+    ax1 = fig.add_subplot(grid[0, :], label="error")
+    axw = fig.add_subplot(grid[1, :], label="window")
+    ax2 = fig.add_subplot(grid[2, 0], sharex=ax1, label="envelope")
+    ax3 = fig.add_subplot(grid[2, 1], label="histogram")
     fig.suptitle(
         f"{req.id} — {verdict.verdict.upper()}", color=_COLOURS[verdict.verdict], weight="bold"
     )
     label = f"error [{req.unit}]"
+    window = judged_window(req, t0, t1)
     if t is not None and e.shape[0]:
-        for i, row in enumerate(e[:_MAX_LINES]):
-            ax1.plot(t, row, lw=0.6, alpha=0.45, color="#57606a", label="runs" if i == 0 else None)
-        if e.shape[0] >= 2:
-            mean, std = e.mean(axis=0), e.std(axis=0, ddof=1)
-            ax1.plot(t, mean + 3 * std, "k--", lw=1.1, label="ensemble mean ±3σ")
-            ax1.plot(t, mean - 3 * std, "k--", lw=1.1)
-        if s.shape[0]:
-            filt = np.sqrt(np.mean(s**2, axis=0))
-            ax1.plot(t, 3 * filt, color="#0969da", lw=1.3, label="filter ±3σ (RMS over runs)")
-            ax1.plot(t, -3 * filt, color="#0969da", lw=1.3)
+        _draw_ensemble(ax1, t, window_curves(t, e, s, (t[0], t[-1])))
+        curves = window_curves(t, e, s, window)
+        _draw_ensemble(axw, curves["time"], curves)
+        axw.set_ylim(*window_ylim(req, curves))
+        span = curves["time"][-1] - curves["time"][0]
+        axw.set_xlim(curves["time"][0] - 0.02 * span, curves["time"][-1] + 0.02 * span)
         ax2.fill_between(t, e.min(axis=0), e.max(axis=0), color="#8c959f", alpha=0.35, lw=0)
         ax2.fill_between(
             t,
@@ -347,38 +445,89 @@ def requirement_figure(campaign: Campaign, req: Requirement, verdict: Verdict) -
             ax1.plot(
                 h["time"], h[f"e_{k}"], lw=0.9, color="#bc4c00", label=f"run {rec.index} failed"
             )
-    for ax in (ax1, ax2):
+    for ax in (ax1, axw, ax2):
+        ylim = ax.get_ylim() if ax is axw else None
         _draw_limits(ax, req, t0, t1)
+        if ylim is not None:  # the bound lines keep the window's range
+            ax.set_ylim(*ylim)
         ax.grid(True, alpha=0.3)
         ax.set_ylabel(label)
         ax.legend(loc="upper right", fontsize=7)
     ax1.set_title("error vs time", fontsize=9)
+    axw.set_title(
+        f"judged window {window[0]:g} – {window[1]:g} s (y-range: the window's data and the bound)",
+        fontsize=9,
+    )
+    axw.set_xlabel("time [s]")
     ax2.set_title(f"Monte Carlo envelope ({e.shape[0]} completed runs)", fontsize=9)
     ax2.set_xlabel("time [s]")
+    _histogram(ax3, campaign, req, verdict)
+    fig.tight_layout()
+    return fig
 
+
+def _histogram(ax: plt.Axes, campaign: Campaign, req: Requirement, verdict: Verdict) -> None:
+    """Per-run metrics with the limit, the statistic and its confidence bounds."""
     values = campaign.metric_values(req)
     finite = values[np.isfinite(values)]
     n_inf = int(np.sum(np.isinf(values)))
     if finite.size:
-        ax3.hist(finite, bins=min(30, max(5, finite.size // 3)), color="#8c959f", edgecolor="k")
-    ax3.axvline(req.limit, color="#cf222e", lw=1.6, label=f"limit {req.limit:g} {req.metric_unit}")
+        ax.hist(finite, bins=min(30, max(5, finite.size // 3)), color="#8c959f", edgecolor="k")
+    ax.axvline(req.limit, color="#cf222e", lw=1.6, label=f"limit {req.limit:g} {req.metric_unit}")
     if req.statistic != "pass_rate" and math.isfinite(verdict.value):
-        ax3.axvline(
+        ax.axvline(
             verdict.value,
             color="k",
             ls="--",
             lw=1.2,
             label=f"{req.statistic_text} {verdict.value:.4g}",
         )
+    conf = verdict.details.get("confidence", req.confidence)
+    if req.statistic != "pass_rate" and verdict.interval is not None and conf is not None:
+        lo, hi = verdict.interval
+        what = f"{100 * req.probability:g} % quantile" if req.statistic == "max" else ""
+        for x, side, ls in ((hi, "upper", "-."), (lo, "lower", ":")):
+            if math.isfinite(x):
+                ax.axvline(
+                    x,
+                    color="#8250df",
+                    ls=ls,
+                    lw=1.4,
+                    label=f"{100 * conf:g} % {side} bound {what} {x:.4g}".replace("  ", " "),
+                )
     if n_inf:
-        ax3.text(0.02, 0.92, f"{n_inf} run(s) never settled", transform=ax3.transAxes, fontsize=8)
-    ax3.set_title("per-run metric", fontsize=9)
-    ax3.set_xlabel(f"metric [{req.metric_unit}]")
-    ax3.set_ylabel("runs")
-    ax3.legend(loc="upper right", fontsize=7)
-    ax3.grid(True, alpha=0.3)
-    fig.tight_layout()
-    return _png(fig)
+        ax.text(0.02, 0.92, f"{n_inf} run(s) never settled", transform=ax.transAxes, fontsize=8)
+    ax.set_title("per-run metric", fontsize=9)
+    ax.set_xlabel(f"metric [{req.metric_unit}]")
+    ax.set_ylabel("runs")
+    ax.legend(loc="upper right", fontsize=7)
+    ax.grid(True, alpha=0.3)
+
+
+def requirement_figure(campaign: Campaign, req: Requirement, verdict: Verdict) -> str:
+    """The requirement's figure as base64 PNG.
+
+    Panels: error vs time over the whole run (runs, ensemble mean +/-3 sigma, filter
+    +/-3 sigma, bounds); the same on the judged window only (:func:`judged_window`), its
+    y-range set by the window's data and the bound (:func:`window_ylim`), not by the
+    transient; Monte Carlo envelope (min-max and 5-95 % bands, median, bounds); histogram
+    of the per-run metric with the limit, the statistic and its confidence bounds.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        A finished campaign.
+    req : Requirement
+        The requirement.
+    verdict : Verdict
+        Its verdict.
+
+    Returns
+    -------
+    str
+        Base64 of the PNG.
+    """
+    return _png(build_requirement_figure(campaign, req, verdict))
 
 
 # ------------------------------------------------------------------------------ HTML
@@ -448,7 +597,7 @@ def write_html(campaign: Campaign, path: Path, data: dict[str, Any] | None = Non
         '<h2 id="verdicts">Verdicts</h2>',
         '<table class="verdicts"><thead><tr><th>id</th><th>requirement</th>'
         "<th>criterion (per run)</th><th>statistic</th><th>measured</th><th>bound</th>"
-        "<th>verdict</th><th>why</th></tr></thead><tbody>",
+        "<th>verdict</th><th>why</th><th>what it shows about all runs</th></tr></thead><tbody>",
     ]
     for req, v in zip(campaign.requirements, campaign.verdicts, strict=True):
         parts.append(
@@ -456,7 +605,8 @@ def write_html(campaign: Campaign, path: Path, data: dict[str, Any] | None = Non
             f'<td><a href="#req-{_e(req.id)}">{_e(req.id)}</a></td><td>{_e(req.text)}</td>'
             f"<td>{_e(req.describe())}</td><td>{_e(req.describe_statistic())}</td>"
             f"<td>{_e(_measured(v))}</td><td>{_e(_bound(v))}</td>"
-            f'<td class="verdict {v.verdict}">{v.verdict}</td><td>{_e(v.reason)}</td></tr>'
+            f'<td class="verdict {v.verdict}">{v.verdict}</td><td>{_e(v.reason)}</td>'
+            f'<td class="claim">{_e(v.claim)}</td></tr>'
         )
     parts.append("</tbody></table>")
 
@@ -465,12 +615,15 @@ def write_html(campaign: Campaign, path: Path, data: dict[str, Any] | None = Non
         interval = ""
         if v.interval is not None:
             lo, hi = v.interval
-            interval = f"; confidence bounds [{lo:.4g}, {hi:.4g}]"
+            conf = v.details.get("confidence", req.confidence)
+            what = f"{conf * 100:g} % " if conf else ""
+            interval = f"; {what}confidence bounds [{lo:.4g}, {hi:.4g}] {v.unit}"
         parts += [
             f'<section class="requirement" id="req-{_e(req.id)}" data-verdict="{v.verdict}">',
             f"<h2>{_e(req.id)}: {_e(req.text)}</h2>",
             f'<p>Verdict: <strong style="color:{_COLOURS[v.verdict]}">{v.verdict}</strong>. '
             f"{_e(v.reason)}{_e(interval)}.</p>",
+            f'<p class="claim" data-id="{_e(req.id)}">Shown: {_e(v.claim)}.</p>',
             f"<p>Signal <code>{_e(signal)}</code> in {_e(req.unit)}"
             + (f", filter 1σ <code>{_e(req.sigma)}</code>" if req.sigma else "")
             + f"; per run: {_e(req.describe())}; over the runs: "
