@@ -386,3 +386,7 @@ def test_round_trip_through_ins_cosim_run(cli, fmu_dir: Path, tmp_path: Path) ->
     meta = json.loads((tmp_path / "out" / "results.json").read_text())
     assert meta["scenario"]["file"].endswith("demo.ssp")
     assert meta["master"]["coupling"] == "gauss-seidel"  # the scenario's, from the archive
+    assert meta["ssp"]["components"] == {
+        "flexure": "resources/GaussMarkov2.fmu",
+        "sensor": "resources/FirstOrderSensor.fmu",
+    }

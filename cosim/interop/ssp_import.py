@@ -113,10 +113,14 @@ class SspScenario(Scenario):
         unit conversion is suppressed (applied by :meth:`build`).
     notes : list of str
         What the import did that a reader should know (renamed variables, defaults).
+    resources : dict
+        Component name -> its FMU inside the archive (``resources/X.fmu``); the blocks run
+        from copies unpacked into a temporary folder.
     """
 
     links: list[_Link] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
+    resources: dict[str, str] = field(default_factory=dict)
 
     def build(self) -> tuple[System, dict[str, Any]]:
         """Build as a scenario, then give each connection the factor SSP defines.
@@ -145,7 +149,12 @@ class SspScenario(Scenario):
             unit_factor = 1.0 if link.suppress else c.factor
             connections.append(dataclasses.replace(c, factor=unit_factor * link.factor))
         system.connections = connections
-        metadata["ssp"] = {"file": str(self.path), "sha256": self.sha256, "notes": self.notes}
+        metadata["ssp"] = {
+            "file": str(self.path),
+            "sha256": self.sha256,
+            "components": self.resources,
+            "notes": self.notes,
+        }
         return system, metadata
 
 
@@ -321,6 +330,7 @@ def load_ssp(
     variables: dict[str, dict[str, Variable]] = {}
     connector_units: dict[tuple[str, str], str] = {}
     notes: list[str] = []
+    resources: dict[str, str] = {}
     for comp in system.findall("ssd:Elements/ssd:Component", NS):
         name = comp.get("name", "")
         cwhere = f"Component '{name}'"
@@ -366,6 +376,7 @@ def load_ssp(
             if real is not None and real.get("unit"):
                 connector_units[(name, conn.get("name", ""))] = real.get("unit", "")
         blocks[name] = BlockSpec(name, "fmu", str(fmu.resolve()), rename=rename)
+        resources[name] = inner
     if not blocks:
         raise archive.error(ssd_name, where, "no ssd:Component; nothing to run")
     # parameters: system level (names Component.variable), then each component's own
@@ -388,6 +399,7 @@ def load_ssp(
         raw={"scenario": {"name": root.get("name", path.stem)}, "ssp": str(path)},
         links=links,
         notes=notes,
+        resources=resources,
     )
 
 
