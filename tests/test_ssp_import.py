@@ -337,6 +337,18 @@ CASES = [
         "connectors are not supported",
     ),
     (
+        "integer link",
+        bad(
+            SSD,
+            'startElement="decay" startConnector="x"\n          endElement="echo" '
+            'endConnector="u_real"',
+            'startElement="decay" startConnector="n_int" endElement="echo" endConnector="u_int"',
+        ),
+        SSV,
+        "key 'Connection decay.n_int -> echo.u_int': 'decay.n_int' is Integer; ins-cosim "
+        "connects Real variables only",
+    ),
+    (
         "version",
         bad(SSD, 'version="1.0" name="DeckSensors"', 'version="2.0" name="DeckSensors"'),
         SSV,

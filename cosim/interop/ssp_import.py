@@ -31,8 +31,8 @@ records and is checked like a TOML scenario. What is read from ``SystemStructure
 
 Everything else that would change the result is refused, one line naming the archive,
 the file inside it and the element: nested systems, signal dictionaries, connections to
-the system's own connectors, parameter mappings (``.ssm``), Boolean / Integer /
-Enumeration mapping transformations, offsets, Model Exchange components, references
+the system's own connectors, connections of variables that are not Real, parameter
+mappings (``.ssm``), Boolean / Integer / Enumeration mapping transformations, offsets, Model Exchange components, references
 outside the archive, SSD versions other than 1.0, and whatever fails the SSP 1.0 schemas
 that fmpy ships (the ``.ssd`` and every ``.ssv`` are validated).
 
@@ -562,6 +562,12 @@ def _connections(
                 )
             declared = connector_units.get((comp, conn))
             var = variables[comp][conn]
+            if var.type != "Real":
+                raise archive.error(
+                    "SystemStructure.ssd",
+                    where,
+                    f"'{comp}.{conn}' is {var.type}; ins-cosim connects Real variables only",
+                )
             if declared and not _same_unit(declared, var, ssd_units):
                 raise archive.error(
                     "SystemStructure.ssd",
