@@ -44,7 +44,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cosim.estimation.covariance import CovarianceBudget
-from cosim.verify.regression import Regressor, drawn_parameters, regression_table
+from cosim.verify.regression import (
+    Regressor,
+    drawn_parameters,
+    fmt,
+    html_table,
+    regression_html,
+    regression_table,
+)
 from cosim.verify.requirements import Requirement
 from cosim.verify.seeds import Stratified
 
@@ -383,6 +390,8 @@ def _budget_times(req: Requirement, model: LinearModel, stop: float) -> tuple[Fl
     lo = -math.inf if req.start is None else req.start
     hi = math.inf if req.until is None else req.until
     inside = np.flatnonzero((times >= lo - 1e-9) & (times <= hi + 1e-9))
+    if not inside.size:
+        raise ValueError(f"{req.id}: its window has no time of the linear model's analysis")
     window = f"[{times[inside[0]]:g} s, {times[inside[-1]]:g} s]"
     return inside, (
         f"window {window}: the variance averaged over the window's times (the mean-square "
@@ -595,7 +604,13 @@ def campaign_budgets(campaign: Any) -> list[dict[str, Any]]:
         campaign.settings.seed,
         indices,
     )
-    return [requirement_budget(campaign, req, model, draws) for req in campaign.requirements]
+    out = []
+    for req in campaign.requirements:
+        try:
+            out.append(requirement_budget(campaign, req, model, draws))
+        except ValueError as exc:
+            out.append({"id": req.id, "unit": req.unit, "note": f"no budget: {exc}"})
+    return out
 
 
 def budget_section(campaign: Any) -> dict[str, dict[str, Any]]:
@@ -681,58 +696,6 @@ def _e(x: Any) -> str:
     return html.escape(str(x), quote=True)
 
 
-def _g(x: Any, digits: int = 4) -> str:
-    return (
-        "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f"{x:.{digits}g}"
-    )
-
-
-def _rows(header: list[str], rows: list[list[Any]], cls: str) -> str:
-    head = "".join(f"<th>{_e(h)}</th>" for h in header)
-    body = "".join("<tr>" + "".join(f"<td>{_e(c)}</td>" for c in r) + "</tr>" for r in rows)
-    return f'<table class="{cls}"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
-
-
-def regression_html(reg: dict[str, Any]) -> str:
-    """The regression table of a budget as HTML.
-
-    Parameters
-    ----------
-    reg : dict
-        ``regression`` of a budget entry.
-
-    Returns
-    -------
-    str
-    """
-    if "rows" not in reg:
-        what = _e(reg.get("response", ""))
-        return f"<p>Regression of the runs ({what}): {_e(reg.get('note', ''))}.</p>"
-    rows = [
-        [r["name"], r["unit"], _g(r["slope"]), _g(r["se"]), _g(r["predicted"]), _g(r["z"], 3)]
-        for r in reg["rows"]
-    ]
-    return (
-        f"<p>Regression of each run's {_e(reg['response'])} on the parameters the campaign "
-        f"drew ({reg['n']} runs; residual 1σ {_g(reg['residual_sigma'])} "
-        f"{_e(reg['response_unit'])}, R² {_g(reg['r2'], 3)}; {_e(reg['formula'])}). "
-        "A slope within about two standard errors of the model's prediction "
-        "(|z| < 2) agrees with it.</p>"
-        + _rows(
-            [
-                "regressor",
-                "unit",
-                "slope",
-                "standard error",
-                "linear model",
-                "z = (slope − model) / se",
-            ],
-            rows,
-            "regression",
-        )
-    )
-
-
 def budget_html(entry: dict[str, Any] | None) -> str:
     """A requirement's budget section of the HTML report: bar chart and tables.
 
@@ -755,8 +718,8 @@ def budget_html(entry: dict[str, Any] | None) -> str:
         unit = entry["unit"]
         out.append(
             f"<p>Linear model: {_e(entry['model'])}. Time: {_e(entry['reduction'])}. "
-            f"Method: {_e(entry['method'])}. Total 1σ {_g(entry['total']['sigma'])} {_e(unit)}; "
-            f"the parts' sum differs from the total by {_g(entry['sum_check'], 2)} (relative). "
+            f"Method: {_e(entry['method'])}. Total 1σ {fmt(entry['total']['sigma'])} {_e(unit)}; "
+            f"the parts' sum differs from the total by {fmt(entry['sum_check'], 2)} (relative). "
             "Assumes the sources independent and the filter linear: the budget is the "
             "filter model's prediction; the regression below is the campaign's evidence.</p>"
         )
@@ -765,12 +728,14 @@ def budget_html(entry: dict[str, Any] | None) -> str:
             f'src="data:image/png;base64,{budget_figure(entry)}"></figure>'
         )
         rows = [
-            [p["source"], _g(p["sigma"]), _g(p["variance"]), f"{100 * p['share']:.2f} %"]
+            [p["source"], fmt(p["sigma"]), fmt(p["variance"]), f"{100 * p['share']:.2f} %"]
             for p in sorted(entry["parts"], key=lambda p: -p["variance"])
         ]
-        rows.append(["total", _g(entry["total"]["sigma"]), _g(entry["total"]["variance"]), "100 %"])
+        rows.append(
+            ["total", fmt(entry["total"]["sigma"]), fmt(entry["total"]["variance"]), "100 %"]
+        )
         out.append(
-            _rows(
+            html_table(
                 ["source", f"1σ part [{unit}]", f"variance [{unit}²]", "share"],
                 rows,
                 "budget-parts",

@@ -15,10 +15,14 @@ The standard errors assume residuals independent with a common variance (the run
 independent; the sources not regressed on, e.g. the white noises, make up the
 residual). With a linear filter and Gaussian sources the slope is unbiased and
 ``(b_j - beta_j) / se(b_j)`` is Student-t with ``n - p - 1`` degrees of freedom.
+
+:func:`regression_html` renders the table for the HTML report (with :func:`html_table`
+and :func:`fmt`, which the budget section uses too).
 """
 
 from __future__ import annotations
 
+import html
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -244,3 +248,88 @@ def regression_table(
         "r2": fit.r2,
         "rows": rows,
     }
+
+
+# ------------------------------------------------------------------ report rendering
+def _e(x: Any) -> str:
+    return html.escape(str(x), quote=True)
+
+
+def fmt(x: Any, digits: int = 4) -> str:
+    """A number with ``digits`` significant digits, "—" for None or a non-finite one.
+
+    Parameters
+    ----------
+    x : float or None
+        The number.
+    digits : int
+        Significant digits.
+
+    Returns
+    -------
+    str
+    """
+    return (
+        "—" if x is None or (isinstance(x, float) and not math.isfinite(x)) else f"{x:.{digits}g}"
+    )
+
+
+def html_table(header: list[str], rows: list[list[Any]], cls: str) -> str:
+    """An HTML table (cells escaped).
+
+    Parameters
+    ----------
+    header : list of str
+        Column titles.
+    rows : list of list
+        Cells, row by row (any value; shown with ``str``).
+    cls : str
+        The table's class.
+
+    Returns
+    -------
+    str
+    """
+    head = "".join(f"<th>{_e(h)}</th>" for h in header)
+    body = "".join("<tr>" + "".join(f"<td>{_e(c)}</td>" for c in r) + "</tr>" for r in rows)
+    return f'<table class="{cls}"><thead><tr>{head}</tr></thead><tbody>{body}</tbody></table>'
+
+
+def regression_html(reg: dict[str, Any]) -> str:
+    """The regression table of a budget as HTML.
+
+    Parameters
+    ----------
+    reg : dict
+        ``regression`` of a budget entry.
+
+    Returns
+    -------
+    str
+    """
+    if "rows" not in reg:
+        what = _e(reg.get("response", ""))
+        return f"<p>Regression of the runs ({what}): {_e(reg.get('note', ''))}.</p>"
+    rows = [
+        [r["name"], r["unit"], fmt(r["slope"]), fmt(r["se"]), fmt(r["predicted"]), fmt(r["z"], 3)]
+        for r in reg["rows"]
+    ]
+    return (
+        f"<p>Regression of each run's {_e(reg['response'])} on the parameters the campaign "
+        f"drew ({reg['n']} runs; residual 1σ {fmt(reg['residual_sigma'])} "
+        f"{_e(reg['response_unit'])}, R² {fmt(reg['r2'], 3)}; {_e(reg['formula'])}). "
+        "A slope within about two standard errors of the model's prediction "
+        "(|z| < 2) agrees with it.</p>"
+        + html_table(
+            [
+                "regressor",
+                "unit",
+                "slope",
+                "standard error",
+                "linear model",
+                "z = (slope − model) / se",
+            ],
+            rows,
+            "regression",
+        )
+    )
