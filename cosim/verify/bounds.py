@@ -310,9 +310,12 @@ def ksigma_bootstrap_bounds(
     c, n = x.shape
     a = 0.5 * (1.0 - confidence)
     m, s, se_m, se_ls = _pivots(x)
+    flat = s <= 1e-12 * np.maximum(np.abs(m), 1e-300)  # constant up to rounding
+    s = np.where(flat, 0.0, s)
+    se_m, se_ls = np.where(flat, 0.0, se_m), np.where(flat, 0.0, se_ls)
     # Resample through multinomial counts w (one row per resample, shared by the
     # campaigns): the resampled power sums of the standardized metrics are products w @ z^j.
-    z = (x - m[:, None]) / np.where(s > 0, s, 1.0)[:, None]
+    z = np.where(flat[:, None], 0.0, (x - m[:, None]) / np.where(s > 0, s, 1.0)[:, None])
     powers = [(z**j).T for j in range(1, 5)]  # each (n, c)
     rng = np.random.default_rng(seed)
     b = max(1, min(resamples, _CHUNK // n))
