@@ -183,3 +183,33 @@ def test_resume_of_an_interrupted_campaign_with_crashing_runs_finishes_it(tmp_pa
     )
     assert bad.returncode == 3 and bad.stderr.count("\n") == 1, bad.stderr
     assert "add --resume" in bad.stderr
+
+
+@pytest.mark.slow
+def test_a_run_that_kills_its_dask_workers_is_recorded_as_crashed(tmp_path: Path) -> None:
+    """Dask retries a task whose worker died, up to ``allowed-failures``, then the run is
+    recorded as crashed (KilledWorker); the other runs are those of a local campaign."""
+    distributed = pytest.importorskip("distributed")
+    import dask
+
+    path = scenario(tmp_path, runs=4, kill_seed=1)
+    with (
+        dask.config.set({"distributed.scheduler.allowed-failures": 1}),
+        distributed.LocalCluster(
+            n_workers=1, threads_per_worker=1, processes=True, host="127.0.0.1",
+            dashboard_address=None,
+        ) as cluster,
+    ):  # fmt: skip
+        campaign = run_campaign(
+            path, tmp_path / "dask", cluster=cluster.scheduler_address, progress=False
+        )
+    assert [r.status for r in campaign.records] == [
+        "completed",
+        "crashed",
+        "completed",
+        "completed",
+    ]
+    assert "the Dask workers running it died" in campaign.records[1].error
+    local = run_campaign(path, tmp_path / "local", workers=1, progress=False, only_runs=[0, 2, 3])
+    for rec in local.records:
+        assert campaign.records[rec.index].metrics == rec.metrics
