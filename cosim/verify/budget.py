@@ -105,10 +105,14 @@ def scenario_values(path: str | Path) -> tuple[Any, dict[str, dict[str, Any]]]:
     values : dict
         ``{block: {parameter: SI value}}``.
     """
+    import warnings
+
     from cosim.scenario import load_scenario
 
     scenario = load_scenario(path)
-    system, _ = scenario.build()
+    with warnings.catch_warnings():  # the campaign has shown them (feedback loops, ...)
+        warnings.simplefilter("ignore")
+        system, _ = scenario.build()
     try:
         values = {}
         for name, host in system.blocks.items():
@@ -672,10 +676,10 @@ def budget_figure(entry: dict[str, Any]) -> str:
     for y, (p, v) in enumerate(zip(parts, share, strict=True)):
         ax.text(v + 0.5, y, f"{v:.1f} %  (1σ {p['sigma']:.3g} {unit})", va="center", fontsize=7)
     ax.set_xlim(0.0, max(110.0, max(share) * 1.25))
-    ax.set_xlabel("share of the variance [%]")
+    ax.set_xlabel("share of the variance [%] (the shares add to 100 %)")
     ax.set_title(
-        f"{entry['id']}: error budget {_when(entry)}, total 1σ "
-        f"{entry['total']['sigma']:.3g} {unit} (the shares add to 100 %)",
+        f"{entry['id']}: error budget {_when(entry)}\n"
+        f"total 1σ {entry['total']['sigma']:.3g} {unit}",
         fontsize=9,
     )
     ax.tick_params(axis="y", labelsize=8)
