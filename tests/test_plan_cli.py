@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -99,9 +100,10 @@ def run(tmp_path: Path, *args: object) -> subprocess.CompletedProcess:
 
 
 def row(text: str, rid: str) -> list[str]:
+    """The cells of a requirement's row (columns are two or more spaces apart)."""
     lines = [ln for ln in text.splitlines() if ln.startswith(rid + " ")]
     assert len(lines) == 1, text
-    return lines[0].split()
+    return re.split(r"\s{2,}", lines[0].strip())
 
 
 def test_plan_prints_runs_and_time_per_requirement(tmp_path: Path) -> None:
@@ -112,12 +114,21 @@ def test_plan_prints_runs_and_time_per_requirement(tmp_path: Path) -> None:
     assert "pilot: 10 runs of 'tiny_rates' (campaign seed 2024, runs 0 to 9)" in out
     assert "s per run and worker" in out and "runs to decide" in out
     a, b = row(out, "RATE-50"), row(out, "RATE-85")
-    # id, statistic (95 %), pilot value, limit, pilot verdict, runs, verdict then, wall
-    # time, --until-decided runs and wall time
-    assert a[4:9] == ["1", "0.5", "satisfied", "5", "satisfied"], a
-    assert b[4:9] == ["1", "0.85", "undecided", "19", "satisfied"], b
-    assert a[-4:-2] == ["10", "runs,"] and b[-4:-2] == ["40", "runs,"], (a, b)
-    assert b[-1] in ("s", "min") and float(b[-2]) > 0
+    # id, statistic, pilot value, pilot bounds, limit, pilot verdict, runs to decide,
+    # verdict then, wall time, --until-decided runs and wall time. 10 of 10 pilot runs
+    # pass: Clopper-Pearson bounds [0.05^(1/10), 1] = [0.7411, 1].
+    assert a[1:8] == ["pass_rate (95 %)", "1", "[0.7411, 1]", "0.5", "satisfied", "5", "satisfied"]
+    assert b[1:8] == [
+        "pass_rate (95 %)",
+        "1",
+        "[0.7411, 1]",
+        "0.85",
+        "undecided",
+        "19",
+        "satisfied",
+    ]
+    assert a[9].startswith("10 runs, ") and b[9].startswith("40 runs, "), (a, b)
+    assert b[8].endswith((" s", " min")) and float(b[8].split()[0]) > 0
     assert "--until-decided --runs 10 --max-runs 80" in out.replace("\n", " ")
     assert not list(tmp_path.glob("ins-cosim-plan-*")), "the pilot folder is removed"
 

@@ -97,6 +97,8 @@ class RequirementPlan:
         Runs ``verify --until-decided`` takes on typical runs (None: not by its cap).
     note : str
         Why it cannot be planned, or failed pilot runs.
+    interval : tuple of float or None
+        The pilot's confidence bounds of the statistic (``estimate``'s unit), if any.
     """
 
     id: str
@@ -110,6 +112,7 @@ class RequirementPlan:
     verdict: str
     sequential_runs: int | None
     note: str = ""
+    interval: tuple[float, float] | None = None
 
 
 @dataclass
@@ -303,7 +306,7 @@ def plan_requirement(
     return RequirementPlan(
         **base, estimate=estimate, limit=limit, unit=unit,
         pilot_verdict=pilot_verdict.verdict, runs=runs, verdict=verdict,
-        sequential_runs=seq, note=note,
+        sequential_runs=seq, note=note, interval=pilot_verdict.interval,
     )  # fmt: skip
 
 
@@ -424,8 +427,8 @@ def format_plan(plan: Plan) -> str:
         f"{plan.run_time:.3g} s per run and worker, {format_duration(plan.overhead)} fixed cost"
     ]
     seq_head = "--until-decided" if plan.looks is not None else ""
-    header = ["requirement", "statistic", "pilot value", "limit", "pilot verdict",
-              "runs to decide", "verdict then", "wall time", seq_head]  # fmt: skip
+    header = ["requirement", "statistic", "pilot value", "pilot bounds", "limit",
+              "pilot verdict", "runs to decide", "verdict then", "wall time", seq_head]  # fmt: skip
     rows = []
     for p in plan.requirements:
         runs = f"> {plan.cap}" if p.runs is None else str(p.runs)
@@ -439,7 +442,10 @@ def format_plan(plan: Plan) -> str:
         conf = f"{p.statistic} ({100 * p.confidence:g} %)"
         then = p.verdict if p.runs is not None else "-"
         value, limit = _value(p.estimate, p.unit), _value(p.limit, p.unit)
-        rows.append([p.id, conf, value, limit, p.pilot_verdict, runs, then, wall, seq])
+        bounds = "-"
+        if p.interval is not None:
+            bounds = f"[{_value(p.interval[0], '1')}, {_value(p.interval[1], '1')}]"
+        rows.append([p.id, conf, value, bounds, limit, p.pilot_verdict, runs, then, wall, seq])
     widths = [max(len(r[i]) for r in [header, *rows]) for i in range(len(header))]
     for r in [header, *rows]:
         lines.append("  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip())
@@ -451,7 +457,9 @@ def format_plan(plan: Plan) -> str:
         "quantiles) is decided by the statistic's bound at its confidence (Wilks' minimum "
         "runs for p<q>/max when every run passes, Clopper-Pearson at the pilot's rate for "
         "pass_rate, the statistic's confidence bound at the pilot's value for rms and "
-        "mean+ksigma); a real campaign of that many runs decides with about even odds."
+        "mean+ksigma); a real campaign of that many runs decides with about even odds. The "
+        "pilot's value is itself uncertain (pilot bounds: its confidence bounds at the "
+        "requirement's confidence): a limit inside them makes the prediction rough."
     )
     if plan.looks is not None:
         looks = ", ".join(str(n) for n in plan.looks.runs)

@@ -378,9 +378,8 @@ def _read_design(out: Path) -> dict[str, Any]:
 
 
 def _pct(c: float) -> str:
-    """A confidence in per cent, its alpha to 3 significant digits (99.375 %)."""
-    alpha = float(f"{100 * (1 - c):.3g}")
-    return f"{round(100 - alpha, 10):g} %"
+    """A confidence in per cent (``99.6875 %``)."""
+    return f"{100 * c:.6g} %"
 
 
 def _look_line(j: int, looks: Looks, judged: list[tuple[Requirement, SequentialVerdict]]) -> str:
