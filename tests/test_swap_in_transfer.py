@@ -63,8 +63,10 @@ def heading(cli, scenario: Path, out: Path) -> dict:
 def test_vendor_imu_meets_the_heading_requirement_like_ours(cli, tmp_path, vendor_imu_fmu):
     ours = heading(cli, variant(tmp_path, "ours.toml", OURS), tmp_path / "ours")
     theirs = heading(cli, variant(tmp_path, "vendor.toml", vendor(vendor_imu_fmu)), tmp_path / "v")
-    assert ours["verdict"] == "satisfied", ours
-    assert theirs["verdict"] == "satisfied", theirs
+    # 4 runs: the RMS is within the limit, but 4 runs bound it only to 2.37 times itself at
+    # 95 % (chi-square, 4 dof): not shown below 7' either, so undecided, never violated
+    for r in (ours, theirs):
+        assert r["value"] <= r["limit"] and r["verdict"] in ("satisfied", "undecided"), r
     # Same deterministic errors, independent white noise: the heading metric is dominated
     # by the bias-driven part, so both RMS values are of one size (not bit-equal).
     assert 0.5 < theirs["value"] / ours["value"] < 2.0, (ours["value"], theirs["value"])

@@ -151,6 +151,8 @@ def test_rate_imu_meets_the_heading_requirement_like_ours(cli, rate_imu: Path, t
     text = re.sub(r"\nstratify = \[[^]]*\]", "", text)
     (tmp_path / "ours.toml").write_text(text)
     ours = heading(cli, tmp_path / "ours.toml", tmp_path / "ours")
-    assert theirs["verdict"] == "satisfied", theirs
-    assert ours["verdict"] == "satisfied", ours
+    # 4 runs: the RMS is within the limit, but 4 runs bound it only to 2.37 times itself at
+    # 95 % (chi-square, 4 dof): not shown below 7' either, so undecided, never violated
+    for r in (ours, theirs):
+        assert r["value"] <= r["limit"] and r["verdict"] in ("satisfied", "undecided"), r
     assert 0.5 < theirs["value"] / ours["value"] < 2.0, (ours["value"], theirs["value"])
