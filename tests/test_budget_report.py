@@ -60,6 +60,7 @@ def test_report_json_carries_the_budget(static_report: tuple[dict, str]) -> None
     data, _ = static_report
     budgets = data["budgets"]
     assert list(budgets) == [r["id"] for r in data["requirements"]]
+    json.dumps(budgets, allow_nan=False)  # strict JSON: no NaN or Infinity in the budget
     for b in budgets.values():
         assert b["unit"] == "arcmin"
         assert "note" not in b
