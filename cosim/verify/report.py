@@ -34,6 +34,7 @@ import numpy as np  # noqa: E402
 
 from cosim.verify.budget import budget_html, budget_section  # noqa: E402
 from cosim.verify.campaign import Campaign  # noqa: E402
+from cosim.verify.records import write_atomic  # noqa: E402
 from cosim.verify.requirements import (  # noqa: E402
     SATISFIED,
     UNDECIDED,
@@ -67,7 +68,7 @@ def write_reports(campaign: Campaign, out_dir: str | Path | None = None) -> dict
     created = datetime.now(UTC).isoformat(timespec="seconds")
     data = report_data(campaign, created)
     js = out / "report.json"
-    js.write_text(json.dumps(data, indent=2, default=_jsonable) + "\n")
+    write_atomic(js, json.dumps(data, indent=2, default=_jsonable) + "\n")
     junit = write_junit(campaign, out / "junit.xml", created)
     page = write_html(campaign, out / "report.html", data)
     return {"html": page, "junit": junit, "json": js}
@@ -206,7 +207,9 @@ def write_junit(campaign: Campaign, path: Path, created: str = "") -> Path:
         ET.SubElement(case, "system-out").text = detail
     ET.indent(suites)
     path = Path(path)
-    ET.ElementTree(suites).write(path, encoding="utf-8", xml_declaration=True)
+    buffer = io.BytesIO()
+    ET.ElementTree(suites).write(buffer, encoding="utf-8", xml_declaration=True)
+    write_atomic(path, buffer.getvalue())
     return path
 
 
@@ -702,7 +705,7 @@ def write_html(campaign: Campaign, path: Path, data: dict[str, Any] | None = Non
         "</body></html>",
     ]
     path = Path(path)
-    path.write_text("\n".join(parts), encoding="utf-8")
+    write_atomic(path, "\n".join(parts))
     return path
 
 
