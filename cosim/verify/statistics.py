@@ -226,6 +226,8 @@ def _statistic(req: Requirement, used: list[RunMetric]) -> Verdict:
             need = BOOTSTRAP_MIN_RUNS if req.assume == "none" else 2
             if n < need:
                 why = f"{name} needs at least {need} runs for its {conf} bounds, got {n}"
+                if req.assume == "none":
+                    why += " (assume = 'normal' needs 2, for normally distributed metrics)"
                 return Verdict(
                     req.id,
                     UNDECIDED,
