@@ -11,8 +11,11 @@ from __future__ import annotations
 
 import html
 import json
+import shutil
+import subprocess
 from xml.etree import ElementTree as ET
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pytest
 
@@ -142,3 +145,38 @@ def test_reports_carry_the_claim(campaign, tmp_path) -> None:
             assert v.claim in skipped.get("message")
         (entry,) = [r for r in data["requirements"] if r["id"] == req.id]
         assert entry["result"]["claim"] == v.claim
+
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+
+
+@pytest.mark.skipif(
+    CHROMIUM is None, reason="headless Chromium is not installed (Debian: apt-get install chromium)"
+)
+def test_the_report_renders_in_headless_chromium(campaign, tmp_path) -> None:
+    """Issue 15, acceptance 5 (the plot half): the page, opened by a browser, shows every
+    requirement's figure with its four panels and the verdict colours."""
+    paths = write_reports(campaign, tmp_path)
+    shot = tmp_path / "report.png"
+    cmd = [
+        CHROMIUM,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--hide-scrollbars",
+        f"--user-data-dir={tmp_path / 'profile'}",
+        "--window-size=1200,9000",
+        f"--screenshot={shot}",
+        paths["html"].as_uri(),
+    ]
+    subprocess.run(cmd, check=True, capture_output=True, timeout=120)
+    image = plt.imread(shot)[..., :3]  # (rows, columns, rgb) in [0, 1]
+    assert image.shape[0] == 9000 and image.shape[1] == 1200
+    # the undecided banner / verdict cells, in the report's colour #9a6700
+    undecided = np.all(np.abs(image - np.array([0x9A, 0x67, 0x00]) / 255) < 0.02, axis=-1)
+    assert undecided.sum() > 500
+    # one tall figure per requirement: rows with plot ink (not white) in several bands
+    ink = (image < 0.9).any(axis=-1).mean(axis=1)  # share of non-white pixels per row
+    busy = ink > 0.3
+    bands = np.count_nonzero(np.diff(busy.astype(int)) == 1)
+    assert bands >= 4 * len(campaign.requirements), bands  # four panels a figure

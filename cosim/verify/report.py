@@ -616,7 +616,7 @@ def write_html(campaign: Campaign, path: Path, data: dict[str, Any] | None = Non
     for req, v in zip(campaign.requirements, campaign.verdicts, strict=True):
         signal = req.signal + (f" − {req.minus}" if req.minus else "")
         interval = ""
-        if v.interval is not None:
+        if v.interval is not None and f"{v.interval[0]:.4g} " not in v.reason:
             lo, hi = v.interval
             conf = v.details.get("confidence", req.confidence)
             what = f"{conf * 100:g} % " if conf else ""
