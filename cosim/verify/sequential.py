@@ -46,7 +46,6 @@ refused. Each look calls :func:`cosim.verify.campaign.run_campaign` with ``resum
 
 from __future__ import annotations
 
-import inspect
 import json
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
@@ -65,6 +64,7 @@ from cosim.verify.campaign import (
     prepare,
     run_campaign,
 )
+from cosim.verify.lock import holding_report_folder
 from cosim.verify.records import read_records
 from cosim.verify.requirements import (
     SATISFIED,
@@ -231,10 +231,6 @@ def requirement_confidence(req: Requirement) -> float:
     return float(req.confidence) if req.confidence is not None else DEFAULT_CONFIDENCE
 
 
-def _judge_takes_confidence() -> bool:
-    return "confidence" in inspect.signature(judge).parameters
-
-
 def judge_at(req: Requirement, metrics: Sequence[RunMetric | None], confidence: float) -> Verdict:
     """The verdict of a requirement on some runs, at a given confidence.
 
@@ -252,11 +248,7 @@ def judge_at(req: Requirement, metrics: Sequence[RunMetric | None], confidence: 
     Verdict
         As :func:`cosim.verify.statistics.judge`.
     """
-    if _judge_takes_confidence():
-        return judge(req, metrics, confidence=confidence)
-    if req.confidence is not None:  # p<q> and pass_rate carry theirs in the requirement
-        return judge(replace(req, confidence=confidence), metrics)
-    return judge(req, metrics)
+    return judge(req, metrics, confidence=confidence)
 
 
 @dataclass
@@ -394,6 +386,7 @@ def _look_line(j: int, looks: Looks, judged: list[tuple[Requirement, SequentialV
     return "; ".join(parts)
 
 
+@holding_report_folder("out_dir")  # one campaign at a time in the folder, over all looks
 def run_until_decided(
     scenario: str | Path,
     out_dir: str | Path,
@@ -525,6 +518,21 @@ def run_until_decided(
     return _finish(campaign, reqs, final, looks, ran)
 
 
+def _overall_claim(claim: str, look: float, overall: float) -> str:
+    """The claim of a look's verdict, with the confidence the sequential rule gives it.
+
+    The bound of the deciding look is at the look's confidence; what the rule shows, by
+    the union bound over the looks, holds at the requirement's (lower) confidence.
+    """
+    if not claim:
+        return claim
+    at_look, at_rule = f"{100 * look:g} % confidence", f"{100 * overall:g} % confidence"
+    note = f"{at_rule} over the looks of --until-decided (this look's bound at {100 * look:g} %)"
+    if at_look in claim:
+        return claim.replace(at_look, note, 1)
+    return f"{claim} ({note})"
+
+
 def _finish(
     campaign: Campaign,
     reqs: Sequence[Requirement],
@@ -549,6 +557,8 @@ def _finish(
                 f"undecided at every look up to {sv.runs} runs (the last judged at "
                 f"{_pct(sv.confidence)} confidence): {v.reason}"
             )
+        if sv.look is not None:  # a one-sided bound decided it: the rule's confidence
+            v.claim = _overall_claim(v.claim, sv.confidence, requirement_confidence(req))
         v.details.update(
             sequential_look=None if sv.look is None else sv.look + 1,
             sequential_runs=sv.runs,
