@@ -177,6 +177,8 @@ def test_until_decided_stops_and_resume_finishes_an_interrupted_one(tmp_path: Pa
     by_id = {r["id"]: r["result"] for r in data["requirements"]}
     assert by_id["RATE-85"]["n_runs"] == 40 and by_id["RATE-50"]["n_runs"] == 10
     assert "decided at look 3 of 4 (40 runs" in by_id["RATE-85"]["reason"]
+    claim = by_id["RATE-85"]["claim"]  # what the rule shows: at 95 % over the looks
+    assert "with 95 % confidence over the looks of --until-decided" in claim, claim
 
     # the 40 runs are those of a fixed campaign of 40 runs (same seed rule)
     ref = run(tmp_path, "verify", scenario, "--runs", 40, "--report", tmp_path / "fixed",

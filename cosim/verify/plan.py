@@ -172,6 +172,28 @@ class Plan:
         """
         return self.overhead + math.ceil(runs / self.workers) * self.run_time
 
+    def sequential_wall_time(self, runs: int) -> float:
+        """Predicted wall time of ``verify --until-decided`` up to the look at ``runs`` [s].
+
+        Each look is a campaign of its batch (the fixed cost once per look).
+
+        Parameters
+        ----------
+        runs : int
+            One of the looks.
+
+        Returns
+        -------
+        float
+            Sum over the looks up to ``runs`` of ``overhead + ceil(batch / workers) *
+            run_time`` [s].
+        """
+        looks = [n for n in (self.looks.runs if self.looks else (runs,)) if n <= runs]
+        batches = np.diff([0, *looks])
+        return float(
+            sum(self.overhead + math.ceil(b / self.workers) * self.run_time for b in batches)
+        )
+
 
 def typical_metrics(req: Requirement, values: Sequence[float], n: int) -> list[RunMetric]:
     """A campaign of n runs spread as the pilot: its quantiles at (i + 1/2) / n.
@@ -438,7 +460,8 @@ def format_plan(plan: Plan) -> str:
         elif p.sequential_runs is None:
             seq = f"not by {plan.looks.cap}"
         else:
-            seq = f"{p.sequential_runs} runs, {format_duration(plan.wall_time(p.sequential_runs))}"
+            seq = p.sequential_runs
+            seq = f"{seq} runs, {format_duration(plan.sequential_wall_time(seq))}"
         conf = f"{p.statistic} ({100 * p.confidence:g} %)"
         then = p.verdict if p.runs is not None else "-"
         value, limit = _value(p.estimate, p.unit), _value(p.limit, p.unit)
@@ -471,7 +494,8 @@ def format_plan(plan: Plan) -> str:
         lines.append("--until-decided: refused for this scenario ([campaign] stratify).")
     lines.append(
         f"wall time: {format_duration(plan.overhead)} + runs / {plan.workers} x "
-        f"{plan.run_time:.3g} s on this machine (from the pilot)."
+        f"{plan.run_time:.3g} s on this machine (from the pilot); --until-decided pays the "
+        f"fixed cost once per look."
     )
     notes = len(rows) + 1 + sum(bool(p.note) for p in plan.requirements)
     return "\n".join(lines[: notes + 1] + [textwrap.fill(t, 100) for t in lines[notes + 1 :]])
