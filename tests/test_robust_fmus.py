@@ -151,6 +151,7 @@ def test_an_interrupted_run_leaves_nothing_and_a_killed_ones_folders_are_swept(
 
 
 @pytest.mark.slow
+@pytest.mark.timeout(7200)  # about 1 s of CPU per run: 20-40 min on a shared machine
 @needs_fmus
 def test_a_thousand_runs_with_fmus_keep_memory_and_time_per_run_flat() -> None:
     """Acceptance 4 of issue 14: 1000 consecutive runs of the demo with FMUs in one process.
@@ -163,11 +164,13 @@ def test_a_thousand_runs_with_fmus_keep_memory_and_time_per_run_flat() -> None:
     cosim.run(DEMO, fmu_dir=BUILT)  # imports, caches
     maps, rss = mapped_libraries(), resident_mib()
     times, walls = [], []
-    for _ in range(1000):
+    for n in range(1000):
         start, wall = time.process_time(), time.perf_counter()
         cosim.run(DEMO, fmu_dir=BUILT)
         times.append(time.process_time() - start)
         walls.append(time.perf_counter() - wall)
+        if n % 100 == 99:  # progress, shown with -s
+            print(f"run {n + 1}: {times[-1]:.3f} s CPU, RSS +{resident_mib() - rss:.1f} MiB")
     grown = resident_mib() - rss
     first, last = sorted(times[:100]), sorted(times[-100:])
     ratio = last[50] / first[50]
