@@ -376,7 +376,10 @@ def verify(
     except UserError as exc:
         _fail(exc)
     except (CampaignInterrupted, KeyboardInterrupt) as exc:
-        text = f"{exc or 'interrupted'}"
+        text = (
+            str(exc)
+            or f"interrupted: finished runs are kept in {report_dir}; continue with --resume"
+        )
         if until_decided:
             text = text.replace("with --resume", "with --until-decided --resume")
         click.echo(text, err=True)
