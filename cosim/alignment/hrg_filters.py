@@ -540,3 +540,203 @@ class TwoPositionAligner:
         var_e = C[0, 0] + (u.imag * sig_delta) ** 2
         var_n = C[1, 1] + (u.real * sig_delta) ** 2
         return u.real, u.imag, math.sqrt(var_e), math.sqrt(var_n)
+
+
+# ----------------------------------------------------------------------------------------
+# Error budget of the linear KF (method 2): the measurement-noise parts
+# ----------------------------------------------------------------------------------------
+#: The estimates :func:`kf_noise_budget` differentiates, in order (SI: rad, rad/s).
+KF_OUTPUTS = ("azimuth", "theta_E", "theta_N", "D_N", "D_E")
+
+
+def kf_windows(
+    aligner: TwoPositionAligner, times: np.ndarray, dv_p: np.ndarray, status: np.ndarray
+) -> list[tuple[int, float, float, np.ndarray]]:
+    """Feed a recorded run to an aligner and return the filter windows it used.
+
+    Parameters
+    ----------
+    aligner : TwoPositionAligner
+        A fresh aligner (any method; the budget uses 2, the KF).
+    times : ndarray, shape (n,)
+        Recorded times, one per macro step [s].
+    dv_p : ndarray, shape (n, 2)
+        Accelerometer velocity increments along platform x, y [m/s]; row ``k + 1`` is
+        the increment the filter block reads for the step from ``times[k]``.
+    status : ndarray, shape (n,)
+        Platform status (1, 0, 2), aligned as ``dv_p``.
+
+    Returns
+    -------
+    list of tuple
+        ``(position, t0, t1, dv)`` per filter update: window in seconds from the start
+        of its position and the summed increment, shape (2,) [m/s].
+    """
+    aligner.start(float(times[0]), float(status[0]))
+    out: list[tuple[int, float, float, np.ndarray]] = []
+    prev = float(status[0])
+    acc: list | None = None
+    for k in range(len(times) - 1):
+        t, h = float(times[k]), float(times[k + 1] - times[k])
+        z, s = np.asarray(dv_p[k + 1], dtype=float)[:2], float(status[k + 1])
+        run = prev == s and s in (1.0, 2.0)
+        prev = s
+        if not run:
+            acc = None
+        elif acc is None:
+            acc = [t, z.copy()]
+        else:
+            acc[1] = acc[1] + z
+        if aligner.step(t, h, z, s) and acc is not None:
+            pos = int(s)
+            start = aligner.starts[pos]
+            out.append((pos, acc[0] - start, t + h - start, acc[1]))
+            acc = None
+    return out
+
+
+def kf_noise_budget(
+    aligner: TwoPositionAligner,
+    windows: list[tuple[int, float, float, np.ndarray]],
+    t: float,
+    noise: dict[str, float],
+) -> tuple[np.ndarray, dict[str, np.ndarray], np.ndarray]:
+    """Variance of the KF's two-position estimates from each measurement-noise source.
+
+    The KF (``method`` 2) is linear in each position's measurements, so the noise part
+    of its linear state's covariance is exact (:func:`cosim.estimation.covariance.
+    covariance_budget` with the filter's own gains, ``P_0`` its prior); the estimates
+    are then propagated to first order: through ``linear_to_polar``, through position
+    2's prior (a position-1 error moves position 2's prior mean: the derivative is taken
+    by rerunning position 2 on the same data) and through eq. (16)-(21)
+    (:func:`combine_positions`) and the tilt propagation. The two positions' noises are
+    independent, so their parts add.
+
+    Parameters
+    ----------
+    aligner : TwoPositionAligner
+        The aligner (method 2) that processed ``windows`` (its ``starts``, priors, ``lat``,
+        ``g``, ``r_var``, indexing and drift parameters are used).
+    windows : list of tuple
+        :func:`kf_windows` of the run (noise-free data: the point of linearisation).
+    t : float
+        Time of the estimates [s], in position 2.
+    noise : dict
+        Source -> its measurement variance per axis and window [(m/s)^2]; they sum to
+        ``aligner.r_var``.
+
+    Returns
+    -------
+    estimate : ndarray, shape (5,)
+        :data:`KF_OUTPUTS` at ``t`` [rad, rad, rad, rad/s, rad/s] (azimuth wrapped).
+    parts : dict
+        Source -> variance of each output, shape (5,) [SI^2].
+    total : ndarray, shape (5,)
+        The same from the covariance's total (all noises together) [SI^2].
+    """
+    from cosim.estimation.covariance import covariance_budget
+
+    lat, g, r_var = aligner.lat, aligner.g, aligner.r_var
+    rng = np.random.default_rng(0)  # unused by the KF
+    wins = {p: [w for w in windows if w[0] == p] for p in (1, 2)}
+    gap = aligner.starts[2] - aligner.starts[1]
+
+    def run(pos: int, x0: np.ndarray, P0: np.ndarray) -> PositionFilter:
+        f = PositionFilter(2, x0, P0, lat, g, r_var, rng)
+        for _, t0, t1, dv in wins[pos]:
+            f.update(dv, t0, t1)
+        return f
+
+    def prior2(x1: np.ndarray, P1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return position2_prior(
+            x1,
+            P1,
+            gap,
+            aligner.index_angle,
+            lat,
+            aligner.sigma_drift,
+            aligner.sigma_index,
+            math.sqrt(aligner.P0[0, 0]),
+        )
+
+    def outputs(x1: np.ndarray, P1: np.ndarray, x2: np.ndarray, P2: np.ndarray) -> np.ndarray:
+        s = combine_positions(x1, P1, x2, P2, aligner.index_angle, lat)
+        u, _ = tilt_jacobian(x2, t - aligner.starts[2], s.delta_2, lat)
+        az = float(wrap_angle(s.azimuth_avg + aligner.index_angle))
+        return np.array([az, u.real, u.imag, s.D_N, s.D_E])
+
+    f1 = run(1, aligner.x0, aligner.P0)
+    x1, P1 = f1.x.copy(), f1.P.copy()
+    x20, P20 = prior2(x1, P1)
+    f2 = run(2, x20, P20)
+    x2, P2 = f2.x.copy(), f2.P.copy()
+    estimate = outputs(x1, P1, x2, P2)
+
+    def through_2(v: np.ndarray) -> np.ndarray:
+        f = run(2, *prior2(v, P1))
+        return outputs(v, P1, f.x, P2)
+
+    a1 = numeric_jacobian(through_2, x1, state_steps(P1), (0,))
+    a2 = numeric_jacobian(lambda v: outputs(x1, P1, v, P2), x2, state_steps(P2), (0,))
+
+    def noise_parts(pos: int, x0: np.ndarray, P0: np.ndarray, x_end: np.ndarray) -> dict:
+        Py0 = kf_prior_covariance(x0, P0, lat)
+        Hs = []
+        for _, t0, t1, _ in wins[pos]:
+            E0, E1 = dv_coefficients(t0, t1, lat)
+            cols = (E0, 1j * E0, E1, 1j * E1)
+            Hs.append(np.array([[-g * c.imag for c in cols], [g * c.real for c in cols]]))
+        n = len(Hs)
+        bud = covariance_budget(
+            {"prior": Py0},
+            n,
+            1.0,
+            lambda k: (np.eye(4), {}),
+            lambda k: (Hs[k], {s: v * np.eye(2) for s, v in noise.items()}),
+            record_every=n,
+            include_start=False,
+        )
+        y = polar_to_linear(x_end, lat)
+        steps = np.maximum(1e-3 * np.sqrt(np.maximum(np.diag(bud.total[-1]), 0.0)), 1e-13)
+        J = numeric_jacobian(lambda v: linear_to_polar(v, lat), y, steps, (PSI,))
+        out = {s: J @ bud.parts[s][-1] @ J.T for s in noise}
+        out["_all"] = J @ (bud.total[-1] - bud.parts["prior"][-1]) @ J.T
+        return out
+
+    n1 = noise_parts(1, aligner.x0, aligner.P0, x1)
+    n2 = noise_parts(2, x20, P20, x2)
+
+    def var(C1: np.ndarray, C2: np.ndarray) -> np.ndarray:
+        return np.einsum("ij,jk,ik->i", a1, C1, a1) + np.einsum("ij,jk,ik->i", a2, C2, a2)
+
+    parts = {s: var(n1[s], n2[s]) for s in noise}
+    return estimate, parts, var(n1["_all"], n2["_all"])
+
+
+def kf_prior_covariance(x0: np.ndarray, P0: np.ndarray, lat: float) -> np.ndarray:
+    """The KF's prior covariance of its linear state ``[Re p, Im p, Re q, Im q]``.
+
+    As :class:`PositionFilter` with ``method`` 2 sets it: for an unknown azimuth
+    isotropic and moment-matched, else ``J P0 J^T`` of :func:`polar_to_linear`.
+
+    Parameters
+    ----------
+    x0 : ndarray, shape (4,)
+        Polar prior mean [rad, rad, rad/s, rad].
+    P0 : ndarray, shape (4, 4)
+        Polar prior covariance.
+    lat : float
+        Latitude [rad].
+
+    Returns
+    -------
+    ndarray, shape (4, 4)
+        [rad^2, (rad/s)^2].
+    """
+    oc = OMEGA_IE * math.cos(lat)
+    if P0[PSI, PSI] >= UNIFORM_SIGMA**2 * (1.0 - 1e-9):
+        tilt_var = 0.5 * (P0[0, 0] + P0[1, 1]) + 0.5 * (x0[0] ** 2 + x0[1] ** 2)
+        rate_var = 0.5 * ((oc - x0[2]) ** 2 + P0[2, 2])
+        return np.diag([tilt_var, tilt_var, rate_var, rate_var])
+    J = numeric_jacobian(lambda v: polar_to_linear(v, lat), x0, state_steps(P0))
+    return J @ P0 @ J.T
