@@ -31,9 +31,6 @@ parameter enters the initial error).
 
 from __future__ import annotations
 
-import base64
-import html
-import io
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -44,20 +41,21 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cosim.estimation.covariance import CovarianceBudget
-from cosim.verify.regression import (
+from cosim.verify.budget_hrg import HrgBudget
+from cosim.verify.regression import (  # noqa: F401  (budget_html, budget_figure: report API)
+    NO_MODEL,
+    RECORDED_METHOD,
     Regressor,
+    budget_figure,
+    budget_html,
     drawn_parameters,
-    fmt,
-    html_table,
-    regression_html,
+    recorded_draws,
     regression_table,
 )
 from cosim.verify.requirements import Requirement
 from cosim.verify.seeds import Stratified
 
 FloatArray = NDArray[np.float64]
-
-NO_MODEL = "no linear error model for this filter"
 
 
 @dataclass
@@ -142,8 +140,10 @@ def _of_source(scenario: Any, source: str) -> str | None:
 
 
 def linear_model(
-    path: str | Path, facts: tuple[Any, dict[str, dict[str, Any]]] | None = None
-) -> LinearModel | None:
+    path: str | Path,
+    facts: tuple[Any, dict[str, dict[str, Any]]] | None = None,
+    requirements: list[Requirement] | None = None,
+) -> LinearModel | HrgBudget | None:
     """The linear error model of the scenario's alignment filter, if it has one.
 
     Parameters
@@ -152,13 +152,20 @@ def linear_model(
         Scenario file.
     facts : tuple, optional
         :func:`scenario_values` of it, if already read.
+    requirements : list of Requirement, optional
+        The requirements to budget: the seed 000 model (:class:`HrgBudget`, the linear
+        KF's first-order budget) simulates their errors and needs them; without them a
+        seed 000 scenario has no model.
 
     Returns
     -------
-    LinearModel or None
+    LinearModel, HrgBudget or None
         None when no block of the scenario has a linear covariance model here.
     """
     scenario, values = facts if facts is not None else scenario_values(path)
+    block = _of_source(scenario, "HrgTwoPositionAlignment")
+    if block is not None:
+        return None if requirements is None else HrgBudget(path, requirements, values)
     block = _of_source(scenario, "SinsStaticAlignment")
     if block is not None:
         return _static_model(scenario, values, block)
@@ -417,7 +424,7 @@ def requirement_budget(
         A finished campaign.
     req : Requirement
         One of its requirements.
-    model : LinearModel or None
+    model : LinearModel, HrgBudget or None
         The scenario's linear model (:func:`linear_model`).
     draws : dict
         The campaign's drawn parameters, ``"block.name"`` -> ndarray (runs, size) [SI].
@@ -434,6 +441,8 @@ def requirement_budget(
     stop = float(campaign.provenance["master"]["stop"])
     out: dict[str, Any] = {"id": req.id, "unit": req.unit}
     block, _, variable = req.signal.partition(".")
+    if isinstance(model, HrgBudget):
+        return _direct_budget(campaign, req, model, draws, stop)
     h = None
     if model is not None and block == model.block and not req.minus and req.criterion != "settling":
         h = model.row(variable, stop)
@@ -574,6 +583,33 @@ def window_mean_errors(campaign: Any, req: Requirement, t0: float, t1: float) ->
     return out
 
 
+def _direct_budget(
+    campaign: Any,
+    req: Requirement,
+    model: HrgBudget,
+    draws: dict[str, FloatArray],
+    stop: float,
+) -> dict[str, Any]:
+    """A requirement's budget from a model that budgets signals itself (seed 000)."""
+    out: dict[str, Any] = {"id": req.id, "unit": req.unit}
+    entry = model.entry(req, stop)
+    if isinstance(entry, str):
+        out["note"] = entry
+    else:
+        out.update(entry)
+    regs = _generic_regressors(draws)
+    if req.criterion == "value":
+        at = stop if req.at is None else req.at
+        y, what = signed_errors(campaign, req, at), f"signed error at {at:g} s"
+    else:
+        y, what = campaign.metric_values(req), "the per-run metric"
+    out["regression"] = {
+        "response": what,
+        **regression_table(y, regs, [None] * len(regs), req.metric_unit),
+    }
+    return out
+
+
 def _generic_regressors(draws: dict[str, FloatArray]) -> list[Regressor]:
     out = []
     for key, x in draws.items():
@@ -599,22 +635,57 @@ def campaign_budgets(campaign: Any) -> list[dict[str, Any]]:
     path = campaign.scenario["file"]
     facts = scenario_values(path)
     values = facts[1]
-    model = linear_model(path, facts)
-    indices = [r.index for r in campaign.records]
-    draws = drawn_parameters(
-        _stratified(campaign, values),
-        values,
-        campaign.settings.runs,
-        campaign.settings.seed,
-        indices,
-    )
+    model = linear_model(path, facts, list(campaign.requirements))
+    draws, origin = campaign_draws(campaign, values)
     out = []
     for req in campaign.requirements:
         try:
-            out.append(requirement_budget(campaign, req, model, draws))
+            entry = requirement_budget(campaign, req, model, draws)
         except ValueError as exc:
-            out.append({"id": req.id, "unit": req.unit, "note": f"no budget: {exc}"})
+            entry = {"id": req.id, "unit": req.unit, "note": f"no budget: {exc}"}
+        if "regression" in entry and origin:
+            entry["regression"]["regressors_from"] = origin
+        out.append(entry)
     return out
+
+
+def campaign_draws(
+    campaign: Any, values: dict[str, dict[str, Any]]
+) -> tuple[dict[str, FloatArray], dict[str, str]]:
+    """Each run's drawn parameters, from the stratified design and the runs' own draws.
+
+    ``[campaign] stratify`` parameters follow from the campaign seed and run count
+    (:func:`cosim.verify.regression.drawn_parameters`); a sensor block that draws from
+    its own seed gives its draw as a truth output at the start
+    (:func:`cosim.verify.regression.recorded_draws`, from each run's recorded seed).
+
+    Parameters
+    ----------
+    campaign : Campaign
+        A finished campaign.
+    values : dict
+        The scenario's parameters with defaults, ``{block: {name: SI value}}``.
+
+    Returns
+    -------
+    draws : dict
+        ``"block.name"`` -> ndarray (runs, size) [SI], the runs in record order.
+    origin : dict
+        ``"block.name"`` -> where its values came from (stated in the report).
+    """
+    stratified = _stratified(campaign, values)
+    indices = [r.index for r in campaign.records]
+    runs, seed = campaign.settings.runs, campaign.settings.seed
+    draws = drawn_parameters(stratified, values, runs, seed, indices)
+    origin = {
+        k: "[campaign] stratify: the design's draw (campaign seed and run count)" for k in draws
+    }
+    recorded = recorded_draws(
+        campaign.scenario["file"], list(campaign.records), set(draws), stratified, runs, seed
+    )
+    draws.update(recorded)
+    origin.update({k: RECORDED_METHOD for k in recorded})
+    return draws, origin
 
 
 def budget_section(campaign: Any) -> dict[str, dict[str, Any]]:
@@ -647,105 +718,3 @@ def _finite(x: Any) -> Any:
     if isinstance(x, float | np.floating):
         return float(x) if math.isfinite(x) else None
     return x
-
-
-# ------------------------------------------------------------------ report rendering
-def budget_figure(entry: dict[str, Any]) -> str:
-    """Bar chart of a requirement's budget: each source's share of the variance.
-
-    Parameters
-    ----------
-    entry : dict
-        One budget (:func:`requirement_budget`) with ``parts``.
-
-    Returns
-    -------
-    str
-        Base64 of the PNG.
-    """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    parts = sorted(entry["parts"], key=lambda p: p["variance"])
-    unit = entry["unit"]
-    fig, ax = plt.subplots(figsize=(9.0, 0.9 + 0.32 * len(parts)))
-    share = [100.0 * p["share"] for p in parts]
-    ax.barh([p["source"] for p in parts], share, color="#0969da")
-    for y, (p, v) in enumerate(zip(parts, share, strict=True)):
-        ax.text(v + 0.5, y, f"{v:.1f} %  (1σ {p['sigma']:.3g} {unit})", va="center", fontsize=7)
-    ax.set_xlim(0.0, max(110.0, max(share) * 1.25))
-    ax.set_xlabel("share of the variance [%] (the shares add to 100 %)")
-    ax.set_title(
-        f"{entry['id']}: error budget {_when(entry)}\n"
-        f"total 1σ {entry['total']['sigma']:.3g} {unit}",
-        fontsize=9,
-    )
-    ax.tick_params(axis="y", labelsize=8)
-    ax.grid(True, axis="x", alpha=0.3)
-    fig.tight_layout()
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90, metadata={"Software": None})
-    plt.close(fig)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
-
-
-def _when(entry: dict[str, Any]) -> str:
-    a, b = entry["window"]
-    return f"at {b:g} s" if a == b else f"over [{a:g} s, {b:g} s] (mean variance)"
-
-
-def _e(x: Any) -> str:
-    return html.escape(str(x), quote=True)
-
-
-def budget_html(entry: dict[str, Any] | None) -> str:
-    """A requirement's budget section of the HTML report: bar chart and tables.
-
-    Parameters
-    ----------
-    entry : dict or None
-        Its budget (:func:`requirement_budget`), or None.
-
-    Returns
-    -------
-    str
-        A ``<div class="budget">``.
-    """
-    if entry is None:
-        return ""
-    out = [f'<div class="budget" data-id="{_e(entry["id"])}"><h3>Error budget</h3>']
-    if "parts" not in entry:
-        out.append(f'<p class="no-budget">{_e(entry.get("note", NO_MODEL))}.</p>')
-    else:
-        unit = entry["unit"]
-        out.append(
-            f"<p>Linear model: {_e(entry['model'])}. Time: {_e(entry['reduction'])}. "
-            f"Method: {_e(entry['method'])}. Total 1σ {fmt(entry['total']['sigma'])} {_e(unit)}; "
-            f"the parts' sum differs from the total by {fmt(entry['sum_check'], 2)} (relative). "
-            "Assumes the sources independent and the filter linear: the budget is the "
-            "filter model's prediction; the regression below is the campaign's evidence.</p>"
-        )
-        out.append(
-            f'<figure><img alt="{_e(entry["id"])}: error budget" '
-            f'src="data:image/png;base64,{budget_figure(entry)}"></figure>'
-        )
-        rows = [
-            [p["source"], fmt(p["sigma"]), fmt(p["variance"]), f"{100 * p['share']:.2f} %"]
-            for p in sorted(entry["parts"], key=lambda p: -p["variance"])
-        ]
-        rows.append(
-            ["total", fmt(entry["total"]["sigma"]), fmt(entry["total"]["variance"]), "100 %"]
-        )
-        out.append(
-            html_table(
-                ["source", f"1σ part [{unit}]", f"variance [{unit}²]", "share"],
-                rows,
-                "budget-parts",
-            )
-        )
-    if "regression" in entry:
-        out.append(regression_html(entry["regression"]))
-    out.append("</div>")
-    return "\n".join(out)

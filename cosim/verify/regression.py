@@ -22,7 +22,9 @@ and :func:`fmt`, which the budget section uses too).
 
 from __future__ import annotations
 
+import base64
 import html
+import io
 import math
 from dataclasses import dataclass, field
 from typing import Any
@@ -33,6 +35,9 @@ from numpy.typing import NDArray
 from cosim.verify.seeds import Stratified, stratified_draws
 
 FloatArray = NDArray[np.float64]
+
+#: The note of a requirement whose filter has no linear error model here.
+NO_MODEL = "no linear error model for this filter"
 
 #: The formula stated in reports.
 SE_FORMULA = (
@@ -188,6 +193,117 @@ def drawn_parameters(
     return out
 
 
+#: Sensor blocks whose truth outputs carry a run's own draw (blocks drawing from their own
+#: seed): model class -> ((output, draw key), ...); the draw key is the parameter the
+#: ``[campaign] stratify`` draw of the same quantity would have (``"gyro_bias"``), so a
+#: linear model's regressors read both alike.
+TRUTH_OUTPUTS: dict[str, tuple[tuple[str, str], ...]] = {
+    "StrapdownImu": (("gyro_bias_b", "gyro_bias"), ("accel_bias_b", "accel_bias")),
+}
+
+#: How :func:`recorded_draws` obtains its regressors (stated in reports).
+RECORDED_METHOD = (
+    "from the run's recorded seeds: the sensor block re-initialised with the run's seed "
+    "and parameters (no simulation), its truth output at the start time, i.e. the "
+    "turn-on draw of that run (plus the initial Gauss-Markov state) that the run's own "
+    "block output at t0"
+)
+
+
+def recorded_draws(
+    path: str,
+    records: list[Any],
+    skip: set[str],
+    stratified: list[Stratified] | None = None,
+    runs: int = 0,
+    seed: int = 0,
+) -> dict[str, FloatArray]:
+    """Each run's own draw of the sensor errors, read from the sensor blocks' truth outputs.
+
+    A block that draws its turn-on errors from its own seed (``StrapdownImu``: gyro and
+    accelerometer biases) outputs them as truth (``gyro_bias_b``, ``accel_bias_b``
+    [rad/s, m/s^2]). The campaign records each run's seeds; the block is set up with the
+    run's seed, its parameters and the run's stratified draws (if any), and initialised,
+    which draws exactly what the run drew, and its truth output at the start is read. No
+    simulation runs and nothing a run records changes: the metrics cannot move.
+
+    Parameters
+    ----------
+    path : str
+        The campaign's scenario file.
+    records : list of RunRecord
+        The runs (their ``seeds``), in order.
+    skip : set of str
+        Draw keys (``"block.name"``) known otherwise (stratified): left out.
+    stratified : list of Stratified, optional
+        The campaign's stratified parameters (applied to the block as in the run).
+    runs, seed : int
+        The campaign's run count and seed (for the stratified draws).
+
+    Returns
+    -------
+    dict
+        ``"block.name"`` -> ndarray, shape (len(records), 3), sensor axes [SI]; nan for
+        a run without a recorded seed of the block.
+    """
+    import warnings
+
+    from cosim.scenario import load_scenario
+    from cosim.verify.seeds import stratified_draws
+
+    scenario = load_scenario(path)
+    blocks = {
+        name: TRUTH_OUTPUTS[spec.source]
+        for name, spec in scenario.blocks.items()
+        if spec.kind == "model" and spec.source in TRUTH_OUTPUTS
+    }
+    wanted = {b: [(o, k) for o, k in outs if f"{b}.{k}" not in skip] for b, outs in blocks.items()}
+    wanted = {b: v for b, v in wanted.items() if v}
+    if not wanted or not records:
+        return {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        system, _ = scenario.build()
+    out: dict[str, FloatArray] = {}
+    try:
+        start = float(scenario.settings.start)
+        for block, outs in wanted.items():
+            host = system.blocks[block]
+            base = dict(system.parameters.get(block, {}))
+            vrs = {o: [host.variables[f"{o}[{i}]"].vr for i in (1, 2, 3)] for o, _ in outs}
+            vals = {k: np.full((len(records), 3), math.nan) for _, k in outs}
+            for row, rec in enumerate(records):
+                if block not in rec.seeds:
+                    continue
+                params = dict(base, seed=int(rec.seeds[block]))
+                if stratified:
+                    for b, name, z in stratified_draws(stratified, runs, seed, rec.index):
+                        if b != block:
+                            continue
+                        sigma = float(
+                            params.get(f"{name}_sigma", host.variables[f"{name}_sigma"].start)
+                        )
+                        names = (
+                            [name]
+                            if name in host.variables
+                            else [f"{name}[{i + 1}]" for i in range(len(z))]
+                        )
+                        for n, zk in zip(names, z, strict=True):
+                            params[n] = float(params.get(n, host.variables[n].start)) + sigma * zk
+                        params[f"{name}_sigma"] = 0.0
+                host.reset()
+                host.setup(start, params)
+                host.exit_init()
+                for o, k in outs:
+                    vals[k][row] = host.get_real(vrs[o])
+            for _, k in outs:
+                out[f"{block}.{k}"] = vals[k]
+    finally:
+        for host in system.blocks.values():
+            host.terminate()
+    return out
+
+
 def regression_table(
     y: FloatArray, regressors: list[Regressor], predicted: list[float | None], unit: str
 ) -> dict[str, Any]:
@@ -216,7 +332,8 @@ def regression_table(
         ok &= np.isfinite(r.values)
     if not regressors:
         return {
-            "note": "no drawn parameters: the campaign draws only seeds (see [campaign] stratify)"
+            "note": "no drawn parameters: the runs differ only in seeds, and no sensor block "
+            "outputs its draw (see [campaign] stratify)"
         }
     X = np.column_stack([r.values[ok] / r.factor for r in regressors])
     try:
@@ -320,6 +437,10 @@ def regression_html(reg: dict[str, Any]) -> str:
         f"{_e(reg['response_unit'])}, R² {fmt(reg['r2'], 3)}; {_e(reg['formula'])}). "
         "A slope within about two standard errors of the model's prediction "
         "(|z| < 2) agrees with it.</p>"
+        + "".join(
+            f"<p>Regressor {_e(k)}: {_e(v)}.</p>"
+            for k, v in reg.get("regressors_from", {}).items()
+        )
         + html_table(
             [
                 "regressor",
@@ -333,3 +454,111 @@ def regression_html(reg: dict[str, Any]) -> str:
             "regression",
         )
     )
+
+
+# ------------------------------------------------------------------ report rendering
+def budget_figure(entry: dict[str, Any]) -> str:
+    """Bar chart of a requirement's budget: each source's share of the variance.
+
+    Parameters
+    ----------
+    entry : dict
+        One budget (:func:`requirement_budget`) with ``parts``.
+
+    Returns
+    -------
+    str
+        Base64 of the PNG.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    parts = sorted(entry["parts"], key=lambda p: p["variance"])
+    unit = entry["unit"]
+    fig, ax = plt.subplots(figsize=(9.0, 0.9 + 0.32 * len(parts)))
+    share = [100.0 * p["share"] for p in parts]
+    ax.barh([p["source"] for p in parts], share, color="#0969da")
+    for y, (p, v) in enumerate(zip(parts, share, strict=True)):
+        ax.text(v + 0.5, y, f"{v:.1f} %  (1σ {p['sigma']:.3g} {unit})", va="center", fontsize=7)
+    ax.set_xlim(0.0, max(110.0, max(share) * 1.25))
+    ax.set_xlabel("share of the variance [%] (the shares add to 100 %)")
+    ax.set_title(
+        f"{entry['id']}: error budget {_when(entry)}\n"
+        f"total 1σ {entry['total']['sigma']:.3g} {unit}",
+        fontsize=9,
+    )
+    ax.tick_params(axis="y", labelsize=8)
+    ax.grid(True, axis="x", alpha=0.3)
+    fig.tight_layout()
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, metadata={"Software": None})
+    plt.close(fig)
+    return base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def _when(entry: dict[str, Any]) -> str:
+    a, b = entry["window"]
+    return f"at {b:g} s" if a == b else f"over [{a:g} s, {b:g} s] (mean variance)"
+
+
+def budget_html(entry: dict[str, Any] | None) -> str:
+    """A requirement's budget section of the HTML report: bar chart and tables.
+
+    Parameters
+    ----------
+    entry : dict or None
+        Its budget (:func:`requirement_budget`), or None.
+
+    Returns
+    -------
+    str
+        A ``<div class="budget">``.
+    """
+    if entry is None:
+        return ""
+    out = [f'<div class="budget" data-id="{_e(entry["id"])}"><h3>Error budget</h3>']
+    if "parts" not in entry:
+        out.append(f'<p class="no-budget">{_e(entry.get("note", NO_MODEL))}.</p>')
+    else:
+        unit = entry["unit"]
+        out.append(
+            f"<p>Linear model: {_e(entry['model'])}. Time: {_e(entry['reduction'])}. "
+            f"Method: {_e(entry['method'])}. Total 1σ {fmt(entry['total']['sigma'])} {_e(unit)}; "
+            f"the parts' sum differs from the total by {fmt(entry['sum_check'], 2)} (relative). "
+            "Assumes the sources independent and the filter linear: the budget is the "
+            "filter model's prediction; the regression below is the campaign's evidence.</p>"
+        )
+        out.append(
+            f'<figure><img alt="{_e(entry["id"])}: error budget" '
+            f'src="data:image/png;base64,{budget_figure(entry)}"></figure>'
+        )
+        signed = any("signed" in p for p in entry["parts"])
+        if "linearity" in entry:
+            out.append(
+                "<p>First-order check: the error of the run with every source minus the "
+                "sum of the signed parts is "
+                f"{fmt(entry['linearity'], 2)} of the total 1σ.</p>"
+            )
+        rows = [
+            [p["source"], fmt(p["sigma"]), fmt(p["variance"]), f"{100 * p['share']:.2f} %"]
+            + ([fmt(p.get("signed"))] if signed else [])
+            for p in sorted(entry["parts"], key=lambda p: -p["variance"])
+        ]
+        rows.append(
+            ["total", fmt(entry["total"]["sigma"]), fmt(entry["total"]["variance"]), "100 %"]
+            + ([""] if signed else [])
+        )
+        out.append(
+            html_table(
+                ["source", f"1σ part [{unit}]", f"variance [{unit}²]", "share"]
+                + ([f"signed error [{unit}]"] if signed else []),
+                rows,
+                "budget-parts",
+            )
+        )
+    if "regression" in entry:
+        out.append(regression_html(entry["regression"]))
+    out.append("</div>")
+    return "\n".join(out)
