@@ -58,7 +58,8 @@ def test_every_value_requirement_has_a_budget_whose_parts_add_up(
 def test_method_says_it_is_the_linear_kfs_model(budget: tuple[HrgBudget, dict]) -> None:
     _, entries = budget
     e = entries["SEED000-T1-AZ"]
-    assert "linear KF's model" in e["model"] and "the campaign's filter is the UPF" in e["model"]
+    assert e["method"].startswith("the linear KF's model, the campaign's filter is the UPF")
+    assert "the campaign's filter is the UPF" in e["model"]
     assert "first-order propagation" in e["method"] and "eq. (16)-(21)" in e["method"]
 
 

@@ -83,6 +83,8 @@ class HrgBudget:
         The filter block.
     description : str
         The model, for the report.
+    which : str
+        Which filter's model budgets the campaign's (stated first in the method text).
     result : RunResult or None
         The noise-free KF run with every sensor error (after the first :meth:`entry`).
     aligner : TwoPositionAligner
@@ -108,16 +110,17 @@ class HrgBudget:
         self.gyro = _of_source(scenario, "HrgPlatformGyro") or ""
         self.accel = _of_source(scenario, "PlatformAccelerometer") or ""
         method = int(values[self.block]["method"])
+        self.which = (
+            "the linear KF's model"
+            if method == 2
+            else f"the linear KF's model, the campaign's filter is "
+            f"{METHOD_NAMES.get(method, 'another filter')}"
+        )
         self.description = (
             "seed 000 two-position alignment with the linear KF's model (method 2: a KF on "
             "the paper's linear platform-frame model in each position), first-order "
             "through eq. (16)-(21)"
-            + (
-                ""
-                if method == 2
-                else f"; the campaign's filter is {METHOD_NAMES.get(method, 'another')}, "
-                "budgeted with the linear KF's model"
-            )
+            + ("" if method == 2 else f"; the campaign's filter is {METHOD_NAMES.get(method)}")
         )
         self.requirements = list(requirements)
         self.sources: list[tuple[str, str, tuple[str, ...]]] = [
@@ -293,7 +296,7 @@ class HrgBudget:
         return {
             "model": self.description,
             "method": (
-                "first-order propagation (a linearisation) through the two-position "
+                f"{self.which}: first-order propagation (a linearisation) through the two-position "
                 "combination, eq. (16)-(21): each truth sensor error switched off in a "
                 "noise-free co-simulation with the linear KF (its contribution the change "
                 "of the error at the time; values added in quadrature, the sign taken as "
