@@ -1,8 +1,9 @@
 """A test block that ends its own process, or holds its run at a gate (``crashblocks:Crasher``).
 
-Used by the tests of dead workers, of the report folder's lock, of Ctrl-C and of
-``run --isolate``. Its output ``y = t`` is never part of a requirement: adding it to a
-scenario changes no metric.
+Used by the tests of dead workers, of the report folder's lock and of Ctrl-C. Its
+output ``y = t`` is never part of a requirement: adding it to a scenario changes no
+metric. ``Sleeper`` sleeps in each step: built into an FMU, its own Python code runs
+most of the time.
 
 Settings, from the environment of the process that runs the block, or from class
 attributes of a subclass (:func:`crasher_module` writes one into a module beside a
@@ -10,9 +11,9 @@ scenario: worker processes forked from an already running forkserver do not see 
 test's environment changes):
 
 - ``CRASHERS_GATE=<folder>`` (``GATE``), ``CRASHERS_OPEN`` (``OPEN``): every run takes
-  the next slot file ``slot_<n>`` there at its initialisation; slot ``n`` goes on when ``n < CRASHERS_OPEN`` or the file
-  ``<folder>/open`` exists, else it waits (until it is opened or its process stopped):
-  a campaign that cannot finish before the test lets it.
+  the next slot file ``slot_<n>`` there at its initialisation; slot ``n`` goes on when
+  ``n < CRASHERS_OPEN`` or the file ``<folder>/open`` exists, else it waits (until it is
+  opened or its process stopped): a campaign that cannot finish before the test lets it.
 - ``CRASHERS_ONCE=<folder>`` (``ONCE``): the kill or exit of a seed happens only the
   first time (a marker file per seed): a worker that dies once, not twice.
 - ``CRASHERS_PARENT=<pid>`` (``PARENT``): a process other than ``pid`` exits with code 5
@@ -115,3 +116,14 @@ class Crasher(Block):
         if self.seed == self.exit_seed:
             os._exit(3)
         os.abort()
+
+
+class Sleeper(Block):
+    """Sleeps ``nap`` of wall time in each step (an FMU whose own Python code runs most of
+    the time); ``y = t``."""
+
+    variables = (parameter("nap", 0.002, "s"), output("y", 0.0, "s"))
+
+    def step(self, t: float, h: float) -> None:
+        time.sleep(self.nap)
+        self.y = t + h

@@ -213,3 +213,36 @@ def test_a_run_that_kills_its_dask_workers_is_recorded_as_crashed(tmp_path: Path
     local = run_campaign(path, tmp_path / "local", workers=1, progress=False, only_runs=[0, 2, 3])
     for rec in local.records:
         assert campaign.records[rec.index].metrics == rec.metrics
+
+
+def test_ctrl_c_inside_a_pythonfmu_fmu_interrupts_an_in_process_campaign(tmp_path: Path) -> None:
+    """A Ctrl-C raised inside an FMU's own Python code (PythonFMU) reaches the campaign
+    as an interruption, not as a failed run (the FMU reports it as a fatal fmi2DoStep)."""
+    import threading
+
+    from crashblocks import Sleeper
+
+    from cosim.interop.packaging import build_fmu
+    from cosim.verify.campaign import CampaignInterrupted
+
+    fmu = build_fmu(Sleeper, tmp_path / "fmu", extra_files=(TESTS / "crashblocks.py",))
+    path = tmp_path / "sleepy.toml"
+    path.write_text(
+        f'[master]\nstep = "10 ms"\nstop = "1 s"\n\n[blocks.s]\nfmu = "{fmu}"\n\n'
+        "[campaign]\nruns = 40\n\n"
+        '[[requirements]]\nid = "R"\nsignal = "s.y"\nunit = "s"\ncriterion = "value"\n'
+        'bound = "2 s"\n'
+    )
+    out = tmp_path / "report"
+
+    def interrupt() -> None:  # Ctrl-C once a run is on disk: the FMU sleeps 90 % of a run
+        deadline = time.monotonic() + 120
+        while not (out / "runs" / "run_00000.json").exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        os.kill(os.getpid(), signal.SIGINT)
+
+    threading.Thread(target=interrupt, daemon=True).start()
+    with pytest.raises(CampaignInterrupted):
+        run_campaign(path, out, workers=1, progress=False)
+    kept = read_records(out / "runs")
+    assert 1 <= len(kept) < 40 and all(r.status == "completed" for r in kept.values())

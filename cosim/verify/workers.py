@@ -370,11 +370,42 @@ def run_jobs(
     elif workers > 1 and len(jobs) > 1:
         _run_pool(spec, jobs, done, workers)
     else:
-        try:
-            for job in jobs:
-                done(run_one(spec, job))
-        finally:
-            release_worker_state()
+        with _interrupts_noted() as noted:
+            try:
+                for job in jobs:
+                    record = run_one(spec, job)
+                    if noted:  # a Ctrl-C that an FMU's own Python took for a failed step
+                        raise KeyboardInterrupt
+                    done(record)
+            finally:
+                release_worker_state()
+
+
+@contextlib.contextmanager
+def _interrupts_noted() -> Any:
+    """Note each Ctrl-C while runs go on in this process, and raise it as usual.
+
+    The KeyboardInterrupt of a Ctrl-C is raised wherever the main thread runs Python
+    code, also inside an FMU made with PythonFMU (its model runs in this interpreter),
+    which reports it as a fatal fmi2DoStep: without the note the run would be recorded
+    as failed and the campaign would go on.
+    """
+    noted: list[int] = []
+    if threading.current_thread() is not threading.main_thread() or (
+        signal.getsignal(signal.SIGINT) is not signal.default_int_handler
+    ):
+        yield noted
+        return
+
+    def note(signum: int, frame: Any) -> None:
+        noted.append(signum)
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, note)
+    try:
+        yield noted
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 def crashed_record(
