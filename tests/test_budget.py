@@ -303,7 +303,8 @@ def _unstratified_heading(tmp_path: Path, runs: int) -> tuple[dict, float]:
 def test_unstratified_regression_slope_on_the_east_drift(tmp_path: Path) -> None:
     """The shipped scenario as it is (no stratify), 50 runs, seed 2024: the heading error's
     slope on each run's recorded east drift has the magnitude 1 / (W cos L) and the
-    model's sign within two standard errors (about 80 s on two cores)."""
+    model's sign within two standard errors (50 runs of 300 s: one to two minutes on two
+    cores)."""
     row, theory = _unstratified_heading(tmp_path, 50)
     _check_slope(row, theory)
     assert row["se"] < 0.3 * theory
