@@ -32,9 +32,9 @@ records and is checked like a TOML scenario. What is read from ``SystemStructure
 Everything else that would change the result is refused, one line naming the archive,
 the file inside it and the element: nested systems, signal dictionaries, connections to
 the system's own connectors, connections of variables that are not Real, parameter
-mappings (``.ssm``), Boolean / Integer / Enumeration mapping transformations, offsets, Model Exchange components, references
-outside the archive, SSD versions other than 1.0, and whatever fails the SSP 1.0 schemas
-that fmpy ships (the ``.ssd`` and every ``.ssv`` are validated).
+mappings (``.ssm``), Boolean / Integer / Enumeration mapping transformations, offsets,
+Model Exchange components, references outside the archive, SSD versions other than 1.0,
+and whatever fails the SSP 1.0 schemas that fmpy ships (the ``.ssd`` and every ``.ssv`` are validated).
 
 The FMUs are unpacked into a temporary folder that lives as long as the process.
 """

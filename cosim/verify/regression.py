@@ -438,8 +438,7 @@ def regression_html(reg: dict[str, Any]) -> str:
         "A slope within about two standard errors of the model's prediction "
         "(|z| < 2) agrees with it.</p>"
         + "".join(
-            f"<p>Regressor {_e(k)}: {_e(v)}.</p>"
-            for k, v in reg.get("regressors_from", {}).items()
+            f"<p>Regressor {_e(k)}: {_e(v)}.</p>" for k, v in reg.get("regressors_from", {}).items()
         )
         + html_table(
             [
