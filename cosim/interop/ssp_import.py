@@ -34,7 +34,8 @@ the file inside it and the element: nested systems, signal dictionaries, connect
 the system's own connectors, connections of variables that are not Real, parameter
 mappings (``.ssm``), Boolean / Integer / Enumeration mapping transformations, offsets,
 Model Exchange components, references outside the archive, SSD versions other than 1.0,
-and whatever fails the SSP 1.0 schemas that fmpy ships (the ``.ssd`` and every ``.ssv`` are validated).
+and whatever fails the SSP 1.0 schemas that fmpy ships (the ``.ssd`` and every ``.ssv``
+are validated).
 
 The FMUs are unpacked into a temporary folder that lives as long as the process.
 """
