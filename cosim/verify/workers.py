@@ -271,7 +271,7 @@ def run_one(spec: WorkerSpec, job: Job) -> RunRecord:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # loop warnings were shown once by the parent
         try:
-            result = state.master.run()
+            result = state.master.run(on_row=_raise_pending)
             status, error = "completed", ""
         except SimulationError as exc:
             result, status, error = exc.result, "failed", str(exc)
@@ -370,42 +370,72 @@ def run_jobs(
     elif workers > 1 and len(jobs) > 1:
         _run_pool(spec, jobs, done, workers)
     else:
-        with _interrupts_noted() as noted:
+        with _interrupts_outside_fmus():
             try:
                 for job in jobs:
                     record = run_one(spec, job)
-                    if noted:  # a Ctrl-C that an FMU's own Python took for a failed step
-                        raise KeyboardInterrupt
+                    _raise_pending()
                     done(record)
             finally:
                 release_worker_state()
 
 
+#: Ctrl-C noted while an FMU's own Python code ran, raised at the next recorded row.
+_PENDING: list[int] = []
+
+
+def _raise_pending(row: Any = None) -> None:
+    if _PENDING:
+        _PENDING.clear()
+        raise KeyboardInterrupt
+
+
+def _in_fmu_code(frame: Any) -> bool:
+    """Whether Python code runs inside a call into an FMU (fmpy's frames below it)."""
+
+    def fmpy(f: Any) -> bool:
+        return f"{os.sep}fmpy{os.sep}" in f.f_code.co_filename
+
+    if frame is None or fmpy(frame):
+        return False
+    f = frame.f_back
+    while f is not None:
+        if fmpy(f):
+            return True
+        f = f.f_back
+    return False
+
+
 @contextlib.contextmanager
-def _interrupts_noted() -> Any:
-    """Note each Ctrl-C while runs go on in this process, and raise it as usual.
+def _interrupts_outside_fmus() -> Any:
+    """Raise a Ctrl-C in this process's runs outside FMU code only.
 
     The KeyboardInterrupt of a Ctrl-C is raised wherever the main thread runs Python
-    code, also inside an FMU made with PythonFMU (its model runs in this interpreter),
-    which reports it as a fatal fmi2DoStep: without the note the run would be recorded
-    as failed and the campaign would go on.
+    code, also inside an FMU made with PythonFMU (its model runs in this interpreter).
+    That FMU reports it as a fatal fmi2DoStep (the run would be recorded as failed and
+    the campaign would go on) and its instance is left broken: freeing it, or collecting
+    its objects later, crashes the process. A Ctrl-C that lands in FMU code is therefore
+    only noted, and raised when the master records its next row (or the run ends).
     """
-    noted: list[int] = []
     if threading.current_thread() is not threading.main_thread() or (
         signal.getsignal(signal.SIGINT) is not signal.default_int_handler
     ):
-        yield noted
+        yield
         return
 
-    def note(signum: int, frame: Any) -> None:
-        noted.append(signum)
+    def on_sigint(signum: int, frame: Any) -> None:
+        if _in_fmu_code(frame):
+            _PENDING.append(signum)
+            return
         raise KeyboardInterrupt
 
-    signal.signal(signal.SIGINT, note)
+    _PENDING.clear()
+    signal.signal(signal.SIGINT, on_sigint)
     try:
-        yield noted
+        yield
     finally:
         signal.signal(signal.SIGINT, signal.default_int_handler)
+        _PENDING.clear()
 
 
 def crashed_record(
