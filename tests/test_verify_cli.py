@@ -144,19 +144,24 @@ def test_fmus_in_workers_give_the_in_process_metrics(cli, tmp_path, fmu_dir) -> 
 def test_ctrl_c_keeps_finished_runs_and_resume_completes(tmp_path: Path) -> None:
     from cosim.verify.campaign import run_campaign
 
-    # 16 runs of 90 s simulated (about 0.2 s each) on 2 workers: a few seconds long.
-    scenario = variant(tmp_path, **{'stop = "20 s"': 'stop = "90 s"', "runs = 20 ": "runs = 16 "})
+    # 20 runs of 90 s simulated (about 0.2 s each) on 2 workers. The block crashblocks:Crasher
+    # (no effect on any metric) holds every run after the first 3 at its initialisation
+    # until its process is stopped: the campaign cannot end before the SIGINT, however
+    # fast the machine or however long this process waits for the CPU.
+    gate = '[blocks.gate]\nclass = "crashblocks:Crasher"\n\n[output]'
+    scenario = variant(tmp_path, **{'stop = "20 s"': 'stop = "90 s"', "[output]": gate})
     out = tmp_path / "report"
     env = dict(
         os.environ, PYTHONPATH=os.pathsep.join([str(TESTS), os.environ.get("PYTHONPATH", "")])
     )
+    (tmp_path / "gate").mkdir()
     cmd = [sys.executable, "-m", "cosim.cli", "verify", str(scenario), "--report", str(out)]
     proc = subprocess.Popen(
         [*cmd, "--workers", "2"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        env=env,
+        env=dict(env, CRASHERS_GATE=str(tmp_path / "gate"), CRASHERS_OPEN="3"),
         cwd=tmp_path,
     )
     runs_dir = out / "runs"
@@ -170,12 +175,13 @@ def test_ctrl_c_keeps_finished_runs_and_resume_completes(tmp_path: Path) -> None
     assert proc.returncode == 130, (stdout, stderr)
     assert "Traceback" not in stderr and "--resume" in stderr
     kept = sorted(runs_dir.glob("run_*.json"))
-    assert 3 <= len(kept) < 16, "the campaign should have been interrupted mid-way"
+    assert 3 <= len(kept) < 20, "the campaign should have been interrupted mid-way"
     stamps = {p.name: p.stat().st_mtime_ns for p in kept}
     for p in kept:  # each finished run is complete on disk
         assert json.loads(p.read_text())["status"] == "completed"
         assert p.with_suffix(".npz").stat().st_size > 0
     assert not (out / "report.html").exists()
+    assert not (out / "campaign.lock").exists()  # released on Ctrl-C
 
     res = subprocess.run(
         [*cmd, "--resume", "--workers", "2", "--no-progress"],
@@ -188,7 +194,7 @@ def test_ctrl_c_keeps_finished_runs_and_resume_completes(tmp_path: Path) -> None
     assert res.returncode == 0, res.stderr
     data = json.loads((out / "report.json").read_text())
     assert data["campaign"]["resumed"] is True
-    assert data["campaign"]["runs_this_session"] == 16 - len(kept)
+    assert data["campaign"]["runs_this_session"] == 20 - len(kept)
     assert {p.name: p.stat().st_mtime_ns for p in kept} == stamps  # not run again
     reference = run_campaign(scenario, tmp_path / "reference", workers=1, progress=False)
     assert (out / "metrics.csv").read_text() == (reference.out_dir / "metrics.csv").read_text()
