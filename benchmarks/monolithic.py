@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from models.conventions import cross, dcm_to_euler, euler_to_dcm
+from models.conventions import cross, dcm_to_euler, euler_to_dcm, wrap_angle
 from models.deck_flexure import discretize_flexure, noise_factor
 from models.earth import euler_motion_truth, omega_ie_n
 from models.lever_arm import r0_matrix, slave_kinematics
@@ -86,7 +86,9 @@ class ChainParameters:
         return int(round((self.stop - self.start) / self.step))
 
 
-def chain_parameters(scenario: Any = CHAIN_SCENARIO) -> ChainParameters:
+def chain_parameters(
+    scenario: Any = CHAIN_SCENARIO, names: dict[str, str] | None = None
+) -> ChainParameters:
     """Read the chain's parameters from its scenario (units converted by the loader).
 
     Parameters
@@ -94,6 +96,11 @@ def chain_parameters(scenario: Any = CHAIN_SCENARIO) -> ChainParameters:
     scenario : str, Path or cosim.Scenario
         A scenario with the blocks of :data:`CHAIN_BLOCKS` (in-process models), or the
         path of its file.
+    names : dict, optional
+        Chain role (a key of :data:`CHAIN_BLOCKS`) -> the block's name in the scenario,
+        for a scenario that names them otherwise (e.g. ``{"flexure": "flex"}``); roles
+        not given keep their own name. The scenario's other blocks are returned under
+        their own names.
 
     Returns
     -------
@@ -109,7 +116,9 @@ def chain_parameters(scenario: Any = CHAIN_SCENARIO) -> ChainParameters:
     import cosim
 
     sc = scenario if isinstance(scenario, cosim.Scenario) else cosim.load_scenario(scenario)
-    for name, model in CHAIN_BLOCKS.items():
+    role_of = {(names or {}).get(role, role): role for role in CHAIN_BLOCKS}
+    for role, model in CHAIN_BLOCKS.items():
+        name = (names or {}).get(role, role)
         spec = sc.blocks.get(name)
         if spec is None or spec.kind != "model" or spec.source != model:
             raise ValueError(f"{sc.path}: expected block '{name}' with model = '{model}'")
@@ -123,7 +132,7 @@ def chain_parameters(scenario: Any = CHAIN_SCENARIO) -> ChainParameters:
         for name, host in system.blocks.items():
             scalars = {v.name: v.start for v in host.by_causality("parameter")}
             scalars.update(system.parameters.get(name, {}))
-            blocks[name] = _vectors(scalars)
+            blocks[role_of.get(name, name)] = _vectors(scalars)
     finally:
         for host in system.blocks.values():
             host.terminate()
@@ -525,3 +534,64 @@ def simulate(
         for name, arr in values.items():
             out[f"{block}.{name}"] = arr
     return out
+
+
+def master_ins(p: dict[str, Any], ship: dict[str, np.ndarray], h: float) -> dict[str, np.ndarray]:
+    """MasterIns outputs at t0 and every step end from the ship's true outputs.
+
+    The same draws in the same order as :class:`models.master_ins.MasterIns` (6 normals
+    at initialisation, 6 per step, drawn here in one call); zero latency only (the
+    delay line is a sequential buffer).
+
+    Parameters
+    ----------
+    p : dict
+        The MasterIns block's parameters (SI).
+    ship : dict
+        ``"ship.v_n"`` (N + 1, 3) [m/s, NED], ``"ship.rpy"`` (N + 1, 3) [rad],
+        ``"ship.lat"``, ``"ship.lon"`` [rad], ``"ship.h"`` [m] (N + 1,), as
+        :func:`simulate` returns them.
+    h : float
+        Macro step [s].
+
+    Returns
+    -------
+    dict
+        ``v_master_n``, ``rpy_master`` (N + 1, 3); ``lat_master``, ``lon_master``,
+        ``h_master`` (N + 1,).
+
+    Raises
+    ------
+    ValueError
+        A latency other than zero.
+    """
+    if float(p["latency"]) != 0.0:
+        raise ValueError("the monolithic reference models MasterIns without latency only")
+    v_n, rpy = ship["ship.v_n"], ship["ship.rpy"]
+    n_steps = len(v_n) - 1
+    rng = np.random.default_rng(int(p["seed"]))
+    z0 = rng.standard_normal(6)
+    z = rng.standard_normal((n_steps, 6))
+    delta = np.asarray(p["attitude_error"], float) + float(p["attitude_error_sigma"]) * z0[:3]
+    sigma_gm = float(p["velocity_gm_sigma"])
+    gm = np.empty((n_steps + 1, 3))
+    gm[0] = sigma_gm * z0[3:]
+    if sigma_gm > 0.0:
+        x_h = h / float(p["velocity_gm_tau"])
+        gain = sigma_gm * math.sqrt(-math.expm1(-2.0 * x_h))
+        for n in range(n_steps):  # gm_{n+1} = a gm_n + gain z_n (the block's order)
+            gm[n + 1] = math.exp(-x_h) * gm[n] + gain * z[n, :3]
+    else:
+        gm[1:] = gm[0]
+    white = np.zeros((n_steps + 1, 3))
+    white[1:] = float(p["velocity_noise_std"]) * z[:, 3:]
+    rpy_m = rpy + delta
+    rpy_m[:, 0] = wrap_angle(rpy_m[:, 0])
+    rpy_m[:, 2] = wrap_angle(rpy_m[:, 2])
+    return {
+        "v_master_n": v_n + gm + white,
+        "rpy_master": rpy_m,
+        "lat_master": np.asarray(ship["ship.lat"], float),
+        "lon_master": np.asarray(wrap_angle(ship["ship.lon"]), float),
+        "h_master": np.asarray(ship["ship.h"], float),
+    }

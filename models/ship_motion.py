@@ -38,7 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from models.block import Block, parameter
+from models.block import STEP_RTOL, Block, parameter, same_step
 from models.constants import DEG
 from models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
 from models.step_paths import simpson_nodes, substeps
@@ -136,8 +136,9 @@ class ShipMotion(Block):
         """Evaluate the steps from ``t`` on, predicting the master's next step starts.
 
         The truth is closed form in time, so several steps cost one vectorised call.
-        Each step still uses exactly its own ``t`` and ``h`` (:meth:`_Ahead.serves`
-        compares them bit for bit with the prediction ``t0 + n h`` the master uses);
+        Each step uses the master's ``t_n = t0 + n h`` and ``h_n = t_{n+1} - t_n``
+        as predicted from this call's ``h`` (:meth:`_Ahead.serves` compares them with
+        the step actually taken, to the rounding of the time grid);
         the number of steps evaluated ahead doubles while the predictions hold (up to
         :data:`AHEAD_STEPS`) and drops to one when one fails.
         """
@@ -152,20 +153,22 @@ class ShipMotion(Block):
             self._nodes[n] = simpson_nodes(n)
         s, w = self._nodes[n]
         k0 = round((t - self.start_time) / h)
-        starts = self.start_time + (k0 + np.arange(size)) * h
-        if starts[0] != t:
-            starts = t + np.arange(size) * h
-        truth, rpy, v_n = self._truth((starts[:, None] + h * s).ravel())
+        grid = self.start_time + (k0 + np.arange(size + 1)) * h
+        if grid[0] != t:
+            grid = t + np.arange(size + 1) * h
+        starts = grid[:-1]
+        steps = (grid[1:] - starts)[:, None]  # h_n = t_{n+1} - t_n, as the master passes it
+        truth, rpy, v_n = self._truth((starts[:, None] + steps * s).ravel())
         m = len(s)
         self._ahead = _Ahead(
-            h=h,
+            steps=steps[:, 0],
             starts=starts,
             m=m,
             truth=truth,
             rpy=rpy,
             v_n=v_n,
-            dtheta=h * np.matmul(w, truth.omega_ib_b.reshape(size, m, 3)),
-            dv=h * np.matmul(w, truth.f_b.reshape(size, m, 3)),
+            dtheta=steps * np.matmul(w, truth.omega_ib_b.reshape(size, m, 3)),
+            dv=steps * np.matmul(w, truth.f_b.reshape(size, m, 3)),
         )
         return self._ahead
 
@@ -179,7 +182,7 @@ class _Ahead:
     """Truth of the next steps, evaluated at once (rows are node ``j`` of step ``k`` at
     ``k m + j``; step ``k`` from ``starts[k]`` to ``starts[k] + h``)."""
 
-    h: float
+    steps: np.ndarray
     starts: np.ndarray
     m: int
     truth: ImuTruth
@@ -190,5 +193,15 @@ class _Ahead:
     pos: int = 0
 
     def serves(self, t: float, h: float) -> bool:
-        """True when the next evaluated step is exactly the step from ``t`` of size ``h``."""
-        return h == self.h and self.pos < len(self.starts) and self.starts[self.pos] == t
+        """True when the next evaluated step is the step from ``t`` of size ``h``.
+
+        Bit for bit when the master's grid is the predicted one (``t0 + n h`` with the
+        step of the first call); otherwise within the rounding of the time grid
+        (:data:`models.block.STEP_RTOL` of ``h``), which moves the outputs by the
+        relative time difference (~1e-16), far below the models' 1e-12.
+        """
+        k = self.pos
+        if k >= len(self.starts):
+            return False
+        h_k = float(self.steps[k])
+        return abs(float(self.starts[k]) - t) <= STEP_RTOL * h_k and same_step(h, h_k)
