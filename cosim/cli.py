@@ -57,6 +57,41 @@ def _output_folder(path: Path, option: str) -> None:
             raise UserError(f"{option} '{path}' {what} an existing file; give a folder")
 
 
+def _echo_running(scenario, info: dict) -> None:  # noqa: ANN001  (a Scenario)
+    """The line a run starts with, and where each block runs from."""
+    click.echo(
+        f"running '{scenario.name}': {info['blocks']} blocks, {info['n_steps']} steps of "
+        f"{info['step']:g} s ({info['coupling']})"
+    )
+    _echo_sources(scenario)
+
+
+def _run_here(scenario, fmu_dir: Path | None, overrides: dict):  # noqa: ANN001, ANN202
+    """Build and run a Scenario in this process; returns its RunResult."""
+    from cosim.scenario import build_master
+
+    master = build_master(scenario, fmu_dir=fmu_dir, **overrides)
+    _check_roles(scenario, master)
+    s = master.settings
+    info = {"blocks": len(master.system.blocks), "n_steps": s.n_steps}
+    _echo_running(scenario, dict(info, step=s.step, coupling=s.coupling))
+    try:
+        return master.run()
+    finally:
+        master.terminate()
+
+
+def _load_scenario(path: Path):  # noqa: ANN202  (a cosim.scenario.Scenario)
+    """A scenario file (``.toml``) or an SSP archive (``.ssp``, cosim.interop.ssp_import)."""
+    if Path(path).suffix.lower() == ".ssp":
+        from cosim.interop.ssp_import import load_ssp
+
+        return load_ssp(path)
+    from cosim.scenario import load_scenario
+
+    return load_scenario(path)
+
+
 def _stop_override(scenario, stop: str | None) -> dict:  # noqa: ANN001  (a Scenario)
     """``--stop`` read and checked as ``--stop`` (not as ``master.stop``)."""
     from cosim.errors import ScenarioError
@@ -143,26 +178,32 @@ def main() -> None:
 )
 @click.option("--stop", type=str, default=None, help="Override master.stop, e.g. '10 s'.")
 @click.option("--plot/--no-plot", default=True, show_default=True, help="Write results.png.")
-def run(scenario: Path, out: Path, fmu_dir: Path | None, stop: str | None, plot: bool) -> None:
-    """Run SCENARIO once and write its results to --out."""
-    from cosim.scenario import build_master, load_scenario
-
+@click.option(
+    "--isolate",
+    is_flag=True,
+    help="Run in a child process: an FMU that kills it (abort, a crash) leaves the results "
+    "recorded up to then, and a note naming the block, the time and the signal.",
+)
+def run(
+    scenario: Path, out: Path, fmu_dir: Path | None, stop: str | None, plot: bool, isolate: bool
+) -> None:
+    """Run SCENARIO (a .toml scenario or an SSP 1.0 .ssp archive) once and write its results
+    to --out."""
     try:
         _output_folder(out, "--out")
-        sc = load_scenario(scenario)
-        master = build_master(sc, fmu_dir=fmu_dir, **_stop_override(sc, stop))
-        system = master.system
-        _check_roles(sc, master)
-        n_blocks = len(system.blocks)
-        click.echo(
-            f"running '{sc.name}': {n_blocks} blocks, {master.settings.n_steps} steps of "
-            f"{master.settings.step:g} s ({master.settings.coupling})"
-        )
-        _echo_sources(sc)
-        try:
-            result = master.run()
-        finally:
-            master.terminate()
+        sc = _load_scenario(scenario)
+        overrides = _stop_override(sc, stop)
+        if isolate and sc.path.suffix.lower() == ".ssp":
+            raise UserError("--isolate runs .toml scenarios; run the .ssp archive without it")
+        if isolate:
+            from cosim.isolate import run_isolated
+
+            result = run_isolated(
+                sc.path, fmu_dir=fmu_dir, overrides=overrides, check=_check_roles,
+                started=lambda info: _echo_running(sc, info),
+            )  # fmt: skip
+        else:
+            result = _run_here(sc, fmu_dir, overrides)
     except SimulationError as exc:
         click.echo(f"error: {exc}", err=True)
         if exc.result is not None:
@@ -189,11 +230,12 @@ def run(scenario: Path, out: Path, fmu_dir: Path | None, stop: str | None, plot:
     help="Check as if built-in models ran from the FMUs in this folder.",
 )
 def check(scenario: Path, fmu_dir: Path | None) -> None:
-    """Validate SCENARIO (blocks, parameters, units, connections) without running it."""
-    from cosim.scenario import build_master, load_scenario
+    """Validate SCENARIO (a .toml scenario or an .ssp archive: blocks, parameters, units,
+    connections) without running it."""
+    from cosim.scenario import build_master
 
     try:
-        sc = load_scenario(scenario)
+        sc = _load_scenario(scenario)
         master = build_master(sc, fmu_dir=fmu_dir)
         system = master.system
         _check_roles(sc, master)
@@ -290,6 +332,11 @@ def fmus(fmu_dir: Path, build: bool) -> None:
     help="Run built-in models from the FMUs in this folder instead of in-process.",
 )
 @click.option("--resume", is_flag=True, help="Keep the finished runs in --report, run the rest.")
+@click.option(
+    "--rerun-crashed",
+    is_flag=True,
+    help="With --resume: run again the runs recorded as crashed (their worker process died).",
+)
 @click.option("--progress/--no-progress", default=True, help="Progress bar on stderr.")
 @click.option(
     "--only-run",
@@ -316,6 +363,7 @@ def verify(
     seed: int | None,
     fmu_dir: Path | None,
     resume: bool,
+    rerun_crashed: bool,
     progress: bool,
     only_runs: tuple[int, ...],
     until_decided: bool,
@@ -325,6 +373,9 @@ def verify(
 
     --only-run I reruns run I alone with the numbers it has in the whole campaign (the
     same --seed and --runs: stratified draws depend on the run count).
+
+    --resume keeps the runs recorded as crashed (their worker process died);
+    --rerun-crashed runs them again.
 
     --until-decided judges at looks of --runs, 2 x --runs, ... up to --max-runs runs,
     each requirement at a confidence whose alphas sum to its own 1 - confidence, and
@@ -338,8 +389,13 @@ def verify(
 
     try:
         from cosim.scenario import load_scenario
+        from cosim.verify.lock import report_folder_lock
 
         _output_folder(report_dir, "--report")
+        if rerun_crashed and not resume:
+            raise UserError("--rerun-crashed reruns the crashed runs of --resume: add --resume")
+        # one campaign at a time in the folder, until its reports are written
+        click.get_current_context().with_resource(report_folder_lock(report_dir))
         sc = load_scenario(scenario)
         if fmu_dir is not None:
             sc.use_fmus(fmu_dir)
@@ -371,6 +427,7 @@ def verify(
                 resume=resume,
                 progress=progress,
                 only_runs=list(only_runs) or None,
+                rerun_crashed=rerun_crashed,
             )
         paths = write_reports(campaign)
     except UserError as exc:
