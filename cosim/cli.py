@@ -118,25 +118,10 @@ def _check_requirements(scenario, master) -> int:  # noqa: ANN001  (Scenario, Ma
     if "requirements" not in scenario.raw and "campaign" not in scenario.raw:
         return 0
     from cosim.verify.campaign import parse_campaign
-    from cosim.verify.requirements import check_windows, load_requirements
+    from cosim.verify.tables import check_tables
 
-    settings = parse_campaign(scenario)
-    tables = scenario.raw.get("requirements", [])
-    system = master.system
-    outputs = [
-        f"{b}.{v.name}"
-        for b, h in system.blocks.items()
-        for v in h.by_causality("output")
-        if v.type == "Real"
-    ]
-    units: dict = {"time": "s"}
-    for b, v in master.record:
-        var = system.blocks[b].variables[v]
-        units[f"{b}.{v}"] = var.conversion_unit
-    file = str(scenario.path)
-    reqs = load_requirements(tables, units, file, outputs, on_failure=settings.on_failure)
-    check_windows(reqs, master.settings.start, master.settings.stop, file)
-    return len(reqs)
+    checked = check_tables(scenario, parse_campaign(scenario), master, required=False)
+    return len(checked.requirements)
 
 
 class _Command(click.Command):

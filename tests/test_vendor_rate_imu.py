@@ -126,9 +126,11 @@ def test_forgetting_an_edit_is_caught_by_check(cli, rate_imu: Path, tmp_path: Pa
     path.write_text(
         full.replace('"NoiseSeed" = "seed"\n', "").replace("seed = 2 }", "NoiseSeed = 2 }")
     )
-    res = cli("verify", path, "--runs", "1", "--report", tmp_path / "r", "--no-progress")
-    assert res.code == 3, res.out + res.err
-    assert "block 'imu' has no seed parameter to randomize" in res.err
+    for args in (("check", path), ("verify", path, "--runs", "1", "--report", tmp_path / "r")):
+        res = cli(*args)
+        assert res.code == 3, res.out + res.err
+        assert "block 'imu' has no seed parameter to randomize" in res.err
+        assert "Traceback" not in res.err
 
 
 def heading(cli, scenario: Path, out: Path) -> dict:

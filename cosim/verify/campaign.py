@@ -36,9 +36,10 @@ from cosim.errors import ScenarioError
 from cosim.scenario import Scenario, build_master, load_scenario
 from cosim.verify.lock import holding_report_folder
 from cosim.verify.records import RunRecord, read_records, save_record, write_metrics_table
-from cosim.verify.requirements import Requirement, Verdict, check_windows, load_requirements
+from cosim.verify.requirements import Requirement, Verdict
 from cosim.verify.seeds import SEED_RULE, Stratified, run_seeds, stratified_draws
 from cosim.verify.statistics import judge, overall_exit_code
+from cosim.verify.tables import check_tables
 from cosim.verify.workers import CampaignError, Job, WorkerSpec, expand_parameters, run_jobs
 
 __all__ = [
@@ -355,79 +356,22 @@ def prepare(
     if outputs is not None:
         probe.outputs = list(outputs)
     master = build_master(probe, fmu_dir=fmu)
-    system, metadata = master.system, master.metadata
     try:
         master.warn_loops()  # once here; the workers run silently
-        outs = [
-            f"{b}.{v.name}"
-            for b, h in system.blocks.items()
-            for v in h.by_causality("output")
-            if v.type == "Real"
-        ]
-        # the unit conversions use (an FMU's own unit definition when it has one)
-        units: dict[str, Any] = {"time": "s"}
-        for b, v in master.record:
-            var = system.blocks[b].variables[v]
-            units[f"{b}.{v}"] = getattr(var, "conversion_unit", var.unit)
-        seeded = [
-            b
-            for b, h in system.blocks.items()
-            if "seed" in h.variables
-            and h.variables["seed"].causality == "parameter"
-            and h.variables["seed"].type == "Integer"
-        ]
-        declared = {
-            b: {v.name for v in h.variables.values() if v.causality == "parameter"}
-            for b, h in system.blocks.items()
-        }
-        stratified = _stratified(sc, settings, system)
-        parameters = {b: dict(p) for b, p in system.parameters.items()}
+        checked = check_tables(sc, settings, master, requirements=requirements)
     finally:
         master.terminate()
-    reqs: list[Requirement] = []
-    if requirements:
-        tables = sc.raw.get("requirements", [])
-        if not tables:
-            raise ScenarioError(
-                "no requirements: add [[requirements]] tables (id, signal, criterion, bound, ...)",
-                file=str(sc.path),
-                key="requirements",
-            )
-        reqs = load_requirements(tables, units, str(sc.path), outs, on_failure=settings.on_failure)
-        check_windows(reqs, master.settings.start, master.settings.stop, str(sc.path))
-    if settings.randomize is not None:
-        for i, b in enumerate(settings.randomize):
-            if b not in seeded:
-                raise ScenarioError(
-                    f"block '{b}' has no seed parameter to randomize; blocks with one: "
-                    f"{', '.join(seeded) or 'none'}",
-                    file=str(sc.path),
-                    key=f"campaign.randomize[{i}]",
-                )
-    return Prepared(sc, settings, reqs, seeded, metadata, stratified, parameters, declared, fmu)
-
-
-def _stratified(sc: Scenario, settings: CampaignSettings, system: Any) -> tuple[Stratified, ...]:
-    """Resolve ``[campaign] stratify`` against the built blocks."""
-    out = []
-    for i, item in enumerate(settings.stratify):
-        block, name = item.split(".")
-        host = system.blocks.get(block)
-        params = (
-            set()
-            if host is None
-            else {v.name for v in host.variables.values() if v.causality == "parameter"}
-        )
-        size = sum(1 for n in params if n.startswith(f"{name}[") and n.endswith("]"))
-        sigma = f"{name}_sigma"
-        if host is None or not (name in params or size) or sigma not in params:
-            raise sc.error(
-                f"'{item}': expected a parameter of a block with a sibling '{sigma}' (the "
-                f"sigma the block would draw it with)",
-                key=f"campaign.stratify[{i}]",
-            )
-        out.append(Stratified(block, name, size or 1, vector=bool(size)))
-    return tuple(out)
+    return Prepared(
+        sc,
+        settings,
+        checked.requirements,
+        checked.seeded,
+        master.metadata,
+        checked.stratified,
+        checked.parameters,
+        checked.declared,
+        fmu,
+    )
 
 
 def _manifest(prep: Prepared, runs: int, seed: int, fmu_dir: str | None) -> dict[str, Any]:
