@@ -206,9 +206,13 @@ def euler_to_dcm(rpy: ArrayLike) -> np.ndarray:
     Returns
     -------
     ndarray, shape (..., 3, 3)
-        ``C_b_n = Rz(yaw) @ Ry(pitch) @ Rx(roll)``.
+        ``C_b_n = Rz(yaw) @ Ry(pitch) @ Rx(roll)``; one set of angles (shape (3,))
+        takes the scalar path :func:`euler_to_dcm_3` (same arithmetic, a third of
+        the time).
     """
     rpy = np.asarray(rpy, dtype=float)
+    if rpy.shape == (3,):
+        return euler_to_dcm_3(rpy)
     cr, sr = np.cos(rpy[..., 0]), np.sin(rpy[..., 0])
     cp, sp = np.cos(rpy[..., 1]), np.sin(rpy[..., 1])
     cy, sy = np.cos(rpy[..., 2]), np.sin(rpy[..., 2])
@@ -296,8 +300,11 @@ def dcm_to_euler(c: ArrayLike) -> np.ndarray:
     -------
     ndarray, shape (..., 3)
         ``[roll, pitch, yaw]`` [rad]; roll and yaw in (-pi, pi], pitch in [-pi/2, pi/2].
+        One DCM (shape (3, 3)) takes the scalar path :func:`dcm_to_euler_3`.
     """
     c = np.asarray(c, dtype=float)
+    if c.shape == (3, 3):
+        return dcm_to_euler_3(c)
     roll = np.arctan2(c[..., 2, 1], c[..., 2, 2])
     pitch = np.arctan2(-c[..., 2, 0], np.hypot(c[..., 2, 1], c[..., 2, 2]))
     yaw = np.arctan2(c[..., 1, 0], c[..., 0, 0])
