@@ -95,11 +95,18 @@ class FedFilter:
         self.outputs = [v.name for v in self.cls.variables if v.causality == "output"]
         self.recorded: dict[str, np.ndarray] = {}
 
-    def run(self) -> None:
-        """The whole run: chain and master INS in whole-array calls, the filter step by step."""
+    def run(self, stop: float | None = None) -> None:
+        """The whole run: chain and master INS in whole-array calls, the filter step by step.
+
+        Parameters
+        ----------
+        stop : float, optional
+            Stop time [s] instead of the scenario's (a whole number of steps).
+        """
         p = self.params
-        h, t0, n_steps = p.step, p.start, p.n_steps
-        out = simulate(p)
+        h, t0 = p.step, p.start
+        n_steps = p.n_steps if stop is None else int(round((stop - t0) / h))
+        out = simulate(p, stop=stop)
         for name, values in master_ins(p.blocks["master"], out, h).items():
             out[f"master.{name}"] = values
         feed = [(name, out[source]) for name, source in FEED.items()]
