@@ -12,6 +12,11 @@ give the same covariance. The filters supply ``Phi_k, Qd_k`` (e.g. Van Loan of t
 error model at mid-step) and ``H_k, R_k``; see
 :func:`cosim.alignment.static_model.static_covariance` and
 :func:`cosim.alignment.transfer_analysis.transfer_covariance`.
+
+There is one loop: :func:`covariance_budget` runs it with the noise split by error
+source, :func:`covariance_analysis` runs the same loop with one source and keeps the
+total only (its sums then add a zero matrix to ``P0``, ``Qd`` and ``R``, which is
+exact, so the total is the budget's total to the bit).
 """
 
 from __future__ import annotations
@@ -132,24 +137,27 @@ def covariance_analysis(
     ValueError
         When ``n_steps < 1`` or ``record_every < 1``.
     """
-    if n_steps < 1 or record_every < 1:
-        raise ValueError(
-            f"n_steps and record_every: expected >= 1, got {n_steps} and {record_every}"
-        )
-    P = np.array(P0, dtype=float)
-    zero = np.zeros(P.shape[0])
-    times, Ps = ([0.0], [P.copy()]) if include_start else ([], [])
-    for k in range(n_steps):
+
+    def split_transition(k: int) -> tuple[FloatArray, dict[str, FloatArray]]:
         Phi, Qd = transition(k)
-        P = Phi @ P @ Phi.T + Qd
+        return Phi, {"": Qd}
+
+    def split_measurement(k: int) -> tuple[FloatArray, dict[str, FloatArray]] | None:
         upd = None if measurement is None else measurement(k)
-        if upd is not None:
-            H, R = upd
-            _, P, _, _, _ = joseph_update(zero, P, np.zeros(H.shape[0]), H, R)
-        if (k + 1) % record_every == 0:
-            times.append((k + 1) * dt)
-            Ps.append(P.copy())
-    return CovarianceHistory(np.array(times), np.array(Ps), tuple(names))
+        return None if upd is None else (upd[0], {"": upd[1]})
+
+    # One source: the loop's sums add a zero matrix to P0, Qd and R, which is exact.
+    times, total, _, _ = _covariance_loop(
+        {"": P0},
+        n_steps,
+        dt,
+        split_transition,
+        split_measurement,
+        record_every,
+        include_start,
+        split=False,
+    )
+    return CovarianceHistory(times, total, tuple(names))
 
 
 # ----------------------------------------------------------------------- error budgets
@@ -277,6 +285,29 @@ def covariance_budget(
     ValueError
         When ``n_steps < 1`` or ``record_every < 1``.
     """
+    times, total, parts, transfer = _covariance_loop(
+        P0_parts, n_steps, dt, transition, measurement, record_every, include_start, split=True
+    )
+    return CovarianceBudget(times, total, parts, transfer, tuple(names))
+
+
+def _covariance_loop(
+    P0_parts: dict[str, ArrayLike],
+    n_steps: int,
+    dt: float,
+    transition: BudgetTransition,
+    measurement: BudgetMeasurement | None,
+    record_every: int,
+    include_start: bool,
+    *,
+    split: bool,
+) -> tuple[FloatArray, FloatArray, dict[str, FloatArray], FloatArray]:
+    """The one covariance loop (:func:`covariance_budget`'s recursion).
+
+    Returns the recorded times, totals, parts and transfer matrices; with
+    ``split=False`` only the total is propagated (parts empty, transfer matrices
+    not computed: an empty array).
+    """
     if n_steps < 1 or record_every < 1:
         raise ValueError(
             f"n_steps and record_every: expected >= 1, got {n_steps} and {record_every}"
@@ -284,11 +315,13 @@ def covariance_budget(
     parts = {s: np.array(P, dtype=float) for s, P in P0_parts.items()}
     P = sum(parts.values(), np.zeros_like(next(iter(parts.values()))))
     n = P.shape[0]
+    if not split:
+        parts = {}
     T = np.eye(n)
     zero = np.zeros(n)
 
     def add(source: str) -> None:
-        if source not in parts:  # a source that starts with no initial part
+        if split and source not in parts:  # a source that starts with no initial part
             parts[source] = np.zeros((n, n))
             rec_parts[source] = [np.zeros((n, n))] * len(rec_total)
 
@@ -300,7 +333,8 @@ def covariance_budget(
     def record(t: float) -> None:
         times.append(t)
         rec_total.append(P.copy())
-        rec_T.append(T.copy())
+        if split:
+            rec_T.append(T.copy())
         for s, Ps in parts.items():
             rec_parts[s].append(Ps.copy())
 
@@ -311,7 +345,8 @@ def covariance_budget(
         for s in Qd:
             add(s)
         P = Phi @ P @ Phi.T + sum(Qd.values(), np.zeros((n, n)))
-        T = Phi @ T
+        if split:
+            T = Phi @ T
         for s, Ps in parts.items():
             parts[s] = Phi @ Ps @ Phi.T + Qd.get(s, 0.0)
         upd = None if measurement is None else measurement(k)
@@ -321,8 +356,9 @@ def covariance_budget(
                 add(s)
             R = sum(Rs.values(), np.zeros((H.shape[0], H.shape[0])))
             _, P, K, _, _ = joseph_update(zero, P, np.zeros(H.shape[0]), H, R)
-            A = np.eye(n) - K @ H
-            T = A @ T
+            if split:
+                A = np.eye(n) - K @ H
+                T = A @ T
             for s, Ps in parts.items():
                 Pn = A @ Ps @ A.T
                 if s in Rs:
@@ -330,10 +366,9 @@ def covariance_budget(
                 parts[s] = 0.5 * (Pn + Pn.T)
         if (k + 1) % record_every == 0:
             record((k + 1) * dt)
-    return CovarianceBudget(
+    return (
         np.array(times),
         np.array(rec_total),
         {s: np.array(v) for s, v in rec_parts.items()},
         np.array(rec_T),
-        tuple(names),
     )
