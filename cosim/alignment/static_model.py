@@ -276,6 +276,59 @@ def discretize_taylor(F: FloatArray, Gq: FloatArray, h: float) -> tuple[FloatArr
 
 
 # ------------------------------------------------------------------ covariance analysis
+@dataclass(frozen=True)
+class _TableModel:
+    """The steps and error model of the analysis and of the budget (one definition).
+
+    ``n`` steps of ``dt``, an update after every ``k_upd``-th step, the base attitude
+    ``c_b_n`` (3, 3) and the encoder angle ``gammas`` [rad] at each step's midpoint,
+    shape (n,).
+    """
+
+    n: int
+    k_upd: int
+    c_b_n: FloatArray
+    gammas: FloatArray
+    lat: float
+    h: float
+    coriolis: bool
+
+    def key(self, i: int) -> float:
+        """Cache key of step ``i``: its encoder angle modulo 2 pi, rounded.
+
+        F depends on the encoder angle only through Rz(gamma), and reversing or
+        continuous profiles revisit the same angles.
+        """
+        return round(float(self.gammas[i]) % (2.0 * math.pi), 12)
+
+    def F(self, i: int) -> FloatArray:
+        """Continuous error model at step ``i``'s midpoint, shape (10, 10)."""
+        return error_model(self.c_b_n @ table_dcm(self.gammas[i]), self.lat, self.h, self.coriolis)
+
+
+def _table_model(
+    t_end: float,
+    lat: float,
+    h: float,
+    dt: float,
+    kf_period: float,
+    angle: Callable[[FloatArray], FloatArray] | None,
+    base_rpy: ArrayLike,
+    coriolis: bool,
+) -> _TableModel:
+    """Check the steps and build :class:`_TableModel` (arguments of :func:`static_covariance`)."""
+    n = int(round(t_end / dt))
+    k_upd = int(round(kf_period / dt))
+    if n < 1 or abs(n * dt - t_end) > 1e-9 * max(1.0, t_end):
+        raise AlignmentConfigError(f"t_end = {t_end} s is not a whole number of dt = {dt} s")
+    if k_upd < 1 or abs(k_upd * dt - kf_period) > 1e-9 * kf_period:
+        raise AlignmentConfigError(f"kf_period = {kf_period} s is not a multiple of dt = {dt} s")
+    c_b_n = euler_to_dcm_3(base_rpy)
+    mid = (np.arange(n) + 0.5) * dt
+    gammas = np.zeros(n) if angle is None else np.asarray(angle(mid), dtype=float)
+    return _TableModel(n, k_upd, c_b_n, gammas, lat, h, coriolis)
+
+
 def static_covariance(
     t_end: float,
     *,
@@ -328,35 +381,24 @@ def static_covariance(
     AlignmentConfigError
         When the steps do not fit.
     """
-    n = int(round(t_end / dt))
-    k_upd = int(round(kf_period / dt))
-    if n < 1 or abs(n * dt - t_end) > 1e-9 * max(1.0, t_end):
-        raise AlignmentConfigError(f"t_end = {t_end} s is not a whole number of dt = {dt} s")
-    if k_upd < 1 or abs(k_upd * dt - kf_period) > 1e-9 * kf_period:
-        raise AlignmentConfigError(f"kf_period = {kf_period} s is not a multiple of dt = {dt} s")
-    c_b_n = euler_to_dcm_3(base_rpy)
+    m = _table_model(t_end, lat, h, dt, kf_period, angle, base_rpy, coriolis)
     G = noise_input()
     Qc = tuning.Qc()
     update = (measurement_matrix(), tuning.R())
-    mid = (np.arange(n) + 0.5) * dt
-    gammas = np.zeros(n) if angle is None else np.asarray(angle(mid), dtype=float)
-    # F depends on the encoder angle only through Rz(gamma): reversing or continuous
-    # profiles revisit the same angles, so the discretisations are cached by angle.
-    cache: dict[float, tuple[FloatArray, FloatArray]] = {}
+    cache: dict[float, tuple[FloatArray, FloatArray]] = {}  # by encoder angle
 
     def transition(i: int) -> tuple[FloatArray, FloatArray]:
-        key = round(float(gammas[i]) % (2.0 * math.pi), 12)
+        key = m.key(i)
         if key not in cache:
-            F = error_model(c_b_n @ table_dcm(gammas[i]), lat, h, coriolis)
-            cache[key] = van_loan(F, G, Qc, dt)
+            cache[key] = van_loan(m.F(i), G, Qc, dt)
         return cache[key]
 
     return covariance_analysis(
         tuning.P0(),
-        n,
+        m.n,
         dt,
         transition,
-        lambda i: update if (i + 1) % k_upd == 0 else None,
+        lambda i: update if (i + 1) % m.k_upd == 0 else None,
         record_every=record_every,
         names=STATES,
     )
@@ -467,13 +509,7 @@ def static_budget(
     AlignmentConfigError
         When the steps do not fit.
     """
-    n = int(round(t_end / dt))
-    k_upd = int(round(kf_period / dt))
-    if n < 1 or abs(n * dt - t_end) > 1e-9 * max(1.0, t_end):
-        raise AlignmentConfigError(f"t_end = {t_end} s is not a whole number of dt = {dt} s")
-    if k_upd < 1 or abs(k_upd * dt - kf_period) > 1e-9 * kf_period:
-        raise AlignmentConfigError(f"kf_period = {kf_period} s is not a multiple of dt = {dt} s")
-    c_b_n = euler_to_dcm_3(base_rpy)
+    m = _table_model(t_end, lat, h, dt, kf_period, angle, base_rpy, coriolis)
     G = noise_input()
     q = np.diag(tuning.Qc())
     Qc_parts = {
@@ -482,16 +518,14 @@ def static_budget(
     }
     R = {"measurement noise (zero velocity)": tuning.R()}
     H = measurement_matrix()
-    mid = (np.arange(n) + 0.5) * dt
-    gammas = np.zeros(n) if angle is None else np.asarray(angle(mid), dtype=float)
     gamma0 = 0.0 if angle is None else float(np.asarray(angle(np.zeros(1)), dtype=float)[0])
-    P0_parts = static_sources(tuning, c_b_n @ table_dcm(gamma0), nav_axes=angle is None)
-    cache: dict[float, tuple[FloatArray, dict[str, FloatArray]]] = {}
+    P0_parts = static_sources(tuning, m.c_b_n @ table_dcm(gamma0), nav_axes=angle is None)
+    cache: dict[float, tuple[FloatArray, dict[str, FloatArray]]] = {}  # by encoder angle
 
     def transition(i: int) -> tuple[FloatArray, dict[str, FloatArray]]:
-        key = round(float(gammas[i]) % (2.0 * math.pi), 12)
+        key = m.key(i)
         if key not in cache:
-            F = error_model(c_b_n @ table_dcm(gammas[i]), lat, h, coriolis)
+            F = m.F(i)
             Qd = {}
             for s, Qc in Qc_parts.items():
                 Phi, Qd[s] = van_loan(F, G, Qc, dt)
@@ -500,10 +534,10 @@ def static_budget(
 
     return covariance_budget(
         P0_parts,
-        n,
+        m.n,
         dt,
         transition,
-        lambda i: (H, R) if (i + 1) % k_upd == 0 else None,
+        lambda i: (H, R) if (i + 1) % m.k_upd == 0 else None,
         record_every=record_every,
         names=STATES,
     )

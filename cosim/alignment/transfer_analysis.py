@@ -106,6 +106,128 @@ def _repeat_steps(period: ArrayLike, dt: float) -> int:
     return int(round(n)) if abs(n - round(n)) < 1e-9 * max(1.0, n) and n >= 1 else 0
 
 
+@dataclasses.dataclass(frozen=True)
+class _ShipModel:
+    """The small-error model along the ship's motion, shared by the analysis and budget.
+
+    The slave's kinematics at the step midpoints (specific force ``f_mid``, lever-arm
+    velocity ``v_mid``, slave attitude ``cs_mid``, navigation frame, shape (n_steps, 3)
+    or (n_steps, 3, 3)), the noise input ``G`` (n, 9), the continuous noise by source
+    (9, 9 each, disjoint blocks), the velocity-matching noise ``R`` (3, 3) [m^2/s^2]
+    and the ship's truth at the update times for the flexure measurement.
+    """
+
+    tuning: TransferTuning
+    layout: StateLayout
+    lat: float
+    dt: float
+    k_up: int
+    n_steps: int
+    t_up: FloatArray
+    f_mid: FloatArray
+    v_mid: FloatArray
+    cs_mid: FloatArray
+    up: dict[str, FloatArray]
+    R0: FloatArray
+    G: FloatArray
+    Qc: dict[str, FloatArray]
+    R: FloatArray
+    n_rep: int
+
+    def key(self, k: int) -> int:
+        """Cache key of step ``k``: the motion repeats every ``n_rep`` steps."""
+        return k % self.n_rep if self.n_rep else k
+
+    def A(self, k: int) -> FloatArray:
+        """Error dynamics of step ``k`` at its midpoint, shape (n, n)."""
+        return linear_error_model(
+            self.f_mid[k],
+            self.cs_mid[k],
+            self.v_mid[k],
+            self.lat,
+            0.0,
+            self.layout,
+            tuning=self.tuning,
+        )
+
+    def H(self, k: int) -> FloatArray | None:
+        """Measurement matrix of the update after step ``k`` (3, n), or None."""
+        if (k + 1) % self.k_up:
+            return None
+        layout = self.layout
+        H = np.zeros((3, layout.n))
+        H[:, layout.dv] = _I3
+        if layout.flexure:
+            j = (k + 1) // self.k_up - 1
+            H[:, layout.xi] = flexure_matrix(self.up["C_b_n"][j], self.up["omega_eb_b"][j], self.R0)
+        return H
+
+
+def _ship_model(
+    t_end: float,
+    r0: ArrayLike,
+    mount_rpy: ArrayLike,
+    lat: float,
+    amp: ArrayLike,
+    period: ArrayLike,
+    tuning: TransferTuning | None,
+    flexure: bool,
+    update_period: float,
+    dt: float,
+) -> _ShipModel:
+    """Build :class:`_ShipModel` (arguments of :func:`transfer_covariance`)."""
+    tuning = tuning or TransferTuning()
+    layout = StateLayout(flexure)
+    n = layout.n
+    k_up = int(round(update_period / dt))
+    if k_up < 1 or abs(k_up * dt - update_period) > 1e-9:
+        raise TransferConfigError(f"dt ({dt}) must divide update_period ({update_period})")
+    n_steps = int(round(t_end / dt))
+    r0 = np.asarray(r0, dtype=float)
+    c_s_b = euler_to_dcm(np.asarray(mount_rpy, dtype=float))
+    t_mid = (np.arange(n_steps) + 0.5) * dt
+    t_up = np.arange(1, n_steps // k_up + 1) * update_period
+    mid = ship_truth(t_mid, lat=lat, amp=amp, period=period)
+    up = ship_truth(t_up, lat=lat, amp=amp, period=period)
+    w, wd = mid["omega_ib_b"], mid["omega_dot_b"]
+    wr = np.sum(w * r0, axis=-1, keepdims=True)
+    f_p = mid["f_b"] + cross(wd, r0) + w * wr - r0 * np.sum(w * w, axis=-1, keepdims=True)
+    G = np.zeros((n, 9))
+    G[layout.dv, 0:3] = _I3
+    G[layout.att, 3:6] = _I3
+    Qc = {
+        "accelerometer white noise": np.zeros((9, 9)),
+        "gyro white noise": np.zeros((9, 9)),
+    }
+    Qc["accelerometer white noise"][0:3, 0:3] = tuning.q_accel**2 * _I3
+    Qc["gyro white noise"][3:6, 3:6] = tuning.q_gyro**2 * _I3
+    if flexure:
+        _, Gf, Qf = tuning.flexure_model()
+        G[layout.xi, 6:9] = Gf
+        Qc["flexure noise"] = np.zeros((9, 9))
+        Qc["flexure noise"][6:9, 6:9] = Qf
+    return _ShipModel(
+        tuning=tuning,
+        layout=layout,
+        lat=lat,
+        dt=dt,
+        k_up=k_up,
+        n_steps=n_steps,
+        t_up=t_up,
+        f_mid=np.einsum("mij,mj->mi", mid["C_b_n"], f_p),
+        v_mid=np.einsum("mij,mj->mi", mid["C_b_n"], cross(mid["omega_eb_b"], r0)),
+        cs_mid=mid["C_b_n"] @ c_s_b,
+        up=up,
+        R0=r0_matrix(r0),
+        G=G,
+        Qc=Qc,
+        R=tuning.r_vel**2 * _I3,
+        # The motion repeats with the least common multiple of the periods (24 s for
+        # seed 001): the discretised model of step k equals that of step k - n_rep.
+        n_rep=_repeat_steps(period, dt),
+    )
+
+
 def transfer_covariance(
     t_end: float = 120.0,
     *,
@@ -167,71 +289,33 @@ def transfer_covariance(
     TransferConfigError
         When ``dt`` does not divide ``update_period``.
     """
-    tuning = tuning or TransferTuning()
-    layout = StateLayout(flexure)
-    n = layout.n
-    k_up = int(round(update_period / dt))
-    if k_up < 1 or abs(k_up * dt - update_period) > 1e-9:
-        raise TransferConfigError(f"dt ({dt}) must divide update_period ({update_period})")
-    n_steps = int(round(t_end / dt))
-    r0 = np.asarray(r0, dtype=float)
-    R0 = r0_matrix(r0)
-    c_s_b = euler_to_dcm(np.asarray(mount_rpy, dtype=float))
-    t_mid = (np.arange(n_steps) + 0.5) * dt
-    t_up = np.arange(1, n_steps // k_up + 1) * update_period
-    mid = ship_truth(t_mid, lat=lat, amp=amp, period=period)
-    up = ship_truth(t_up, lat=lat, amp=amp, period=period)
-    w, wd = mid["omega_ib_b"], mid["omega_dot_b"]
-    wr = np.sum(w * r0, axis=-1, keepdims=True)
-    f_p = mid["f_b"] + cross(wd, r0) + w * wr - r0 * np.sum(w * w, axis=-1, keepdims=True)
-    f_mid = np.einsum("mij,mj->mi", mid["C_b_n"], f_p)
-    v_mid = np.einsum("mij,mj->mi", mid["C_b_n"], cross(mid["omega_eb_b"], r0))
-    cs_mid = mid["C_b_n"] @ c_s_b
-    G = np.zeros((n, 9))
-    G[layout.dv, 0:3] = _I3
-    G[layout.att, 3:6] = _I3
-    Qc = np.zeros((9, 9))
-    Qc[0:3, 0:3] = tuning.q_accel**2 * _I3
-    Qc[3:6, 3:6] = tuning.q_gyro**2 * _I3
-    if flexure:
-        _, Gf, Qf = tuning.flexure_model()
-        G[layout.xi, 6:9] = Gf
-        Qc[6:9, 6:9] = Qf
-    R = tuning.r_vel**2 * _I3
-    # The motion repeats with the least common multiple of the periods (24 s for seed
-    # 001): the discretised model of step k equals that of step k - n_rep.
-    n_rep = _repeat_steps(period, dt)
+    m = _ship_model(t_end, r0, mount_rpy, lat, amp, period, tuning, flexure, update_period, dt)
+    # the sources' blocks are disjoint: their sum is the total Qc exactly
+    Qc = sum(m.Qc.values(), np.zeros((9, 9)))
     cache: dict[int, tuple[FloatArray, FloatArray]] = {}
 
     def transition(k: int) -> tuple[FloatArray, FloatArray]:
-        key = k % n_rep if n_rep else k
+        key = m.key(k)
         if key not in cache:
-            A = linear_error_model(f_mid[k], cs_mid[k], v_mid[k], lat, 0.0, layout, tuning=tuning)
-            cache[key] = van_loan(A, G, Qc, dt)
+            cache[key] = van_loan(m.A(k), m.G, Qc, dt)
         return cache[key]
 
     def measurement(k: int) -> tuple[FloatArray, FloatArray] | None:
-        if (k + 1) % k_up:
-            return None
-        H = np.zeros((3, n))
-        H[:, layout.dv] = _I3
-        if flexure:
-            j = (k + 1) // k_up - 1
-            H[:, layout.xi] = flexure_matrix(up["C_b_n"][j], up["omega_eb_b"][j], R0)
-        return H, R
+        H = m.H(k)
+        return None if H is None else (H, m.R)
 
     # slave-velocity form: dv_0 independent of xi_0
     hist = covariance_analysis(
-        tuning.P0(layout, lat),
-        n_steps,
+        m.tuning.P0(m.layout, lat),
+        m.n_steps,
         dt,
         transition,
         measurement,
-        record_every=k_up,
+        record_every=m.k_up,
         include_start=False,
-        names=layout.names,
+        names=m.layout.names,
     )
-    return dataclasses.replace(hist, time=t_up)
+    return dataclasses.replace(hist, time=m.t_up)
 
 
 def transfer_budget(
@@ -286,42 +370,10 @@ def transfer_budget(
     TransferConfigError
         When ``dt`` does not divide ``update_period``.
     """
-    tuning = tuning or TransferTuning()
-    layout = StateLayout(flexure)
-    n = layout.n
-    k_up = int(round(update_period / dt))
-    if k_up < 1 or abs(k_up * dt - update_period) > 1e-9:
-        raise TransferConfigError(f"dt ({dt}) must divide update_period ({update_period})")
-    n_steps = int(round(t_end / dt))
-    r0 = np.asarray(r0, dtype=float)
-    R0 = r0_matrix(r0)
-    c_s_b = euler_to_dcm(np.asarray(mount_rpy, dtype=float))
-    t_mid = (np.arange(n_steps) + 0.5) * dt
-    t_up = np.arange(1, n_steps // k_up + 1) * update_period
-    mid = ship_truth(t_mid, lat=lat, amp=amp, period=period)
-    up = ship_truth(t_up, lat=lat, amp=amp, period=period)
-    w, wd = mid["omega_ib_b"], mid["omega_dot_b"]
-    wr = np.sum(w * r0, axis=-1, keepdims=True)
-    f_p = mid["f_b"] + cross(wd, r0) + w * wr - r0 * np.sum(w * w, axis=-1, keepdims=True)
-    f_mid = np.einsum("mij,mj->mi", mid["C_b_n"], f_p)
-    v_mid = np.einsum("mij,mj->mi", mid["C_b_n"], cross(mid["omega_eb_b"], r0))
-    cs_mid = mid["C_b_n"] @ c_s_b
-    G = np.zeros((n, 9))
-    G[layout.dv, 0:3] = _I3
-    G[layout.att, 3:6] = _I3
-    Qc_parts = {
-        "accelerometer white noise": np.zeros((9, 9)),
-        "gyro white noise": np.zeros((9, 9)),
-    }
-    Qc_parts["accelerometer white noise"][0:3, 0:3] = tuning.q_accel**2 * _I3
-    Qc_parts["gyro white noise"][3:6, 3:6] = tuning.q_gyro**2 * _I3
-    if flexure:
-        _, Gf, Qf = tuning.flexure_model()
-        G[layout.xi, 6:9] = Gf
-        Qc_parts["flexure noise"] = np.zeros((9, 9))
-        Qc_parts["flexure noise"][6:9, 6:9] = Qf
-    R = {"measurement noise (velocity matching)": tuning.r_vel**2 * _I3}
-    P0 = tuning.P0(layout, lat)
+    m = _ship_model(t_end, r0, mount_rpy, lat, amp, period, tuning, flexure, update_period, dt)
+    layout, n = m.layout, m.layout.n
+    R = {"measurement noise (velocity matching)": m.R}
+    P0 = m.tuning.P0(layout, lat)
     P0_parts: dict[str, FloatArray] = {}
 
     def piece(idx: list[int]) -> FloatArray:
@@ -339,37 +391,30 @@ def transfer_budget(
     for name, sl in (("accelerometer bias", layout.nabla), ("gyro drift", layout.eps)):
         for axis, i in zip("xyz", list(range(n))[sl], strict=True):
             P0_parts[f"{name} {axis}"] = piece([i])
-    n_rep = _repeat_steps(period, dt)
     cache: dict[int, tuple[FloatArray, dict[str, FloatArray]]] = {}
 
     def transition(k: int) -> tuple[FloatArray, dict[str, FloatArray]]:
-        key = k % n_rep if n_rep else k
+        key = m.key(k)
         if key not in cache:
-            A = linear_error_model(f_mid[k], cs_mid[k], v_mid[k], lat, 0.0, layout, tuning=tuning)
+            A = m.A(k)
             Qd = {}
-            for s, Qc in Qc_parts.items():
-                Phi, Qd[s] = van_loan(A, G, Qc, dt)
+            for s, Qc in m.Qc.items():
+                Phi, Qd[s] = van_loan(A, m.G, Qc, dt)
             cache[key] = (Phi, Qd)
         return cache[key]
 
     def measurement(k: int) -> tuple[FloatArray, dict[str, FloatArray]] | None:
-        if (k + 1) % k_up:
-            return None
-        H = np.zeros((3, n))
-        H[:, layout.dv] = _I3
-        if flexure:
-            j = (k + 1) // k_up - 1
-            H[:, layout.xi] = flexure_matrix(up["C_b_n"][j], up["omega_eb_b"][j], R0)
-        return H, R
+        H = m.H(k)
+        return None if H is None else (H, R)
 
     budget = covariance_budget(
         P0_parts,
-        n_steps,
+        m.n_steps,
         dt,
         transition,
         measurement,
-        record_every=k_up,
+        record_every=m.k_up,
         include_start=False,
         names=layout.names,
     )
-    return dataclasses.replace(budget, time=t_up)
+    return dataclasses.replace(budget, time=m.t_up)
