@@ -454,16 +454,7 @@ def requirement_budget(
                 "no budget for a settling criterion (its metric is a time, not linear in the error)"
             )
         )
-        regs = _generic_regressors(draws)
-        if req.criterion == "value":
-            at = stop if req.at is None else req.at
-            y, what = signed_errors(campaign, req, at), f"signed error at {at:g} s"
-        else:
-            y, what = campaign.metric_values(req), "the per-run metric"
-        out["regression"] = {
-            "response": what,
-            **regression_table(y, regs, [None] * len(regs), req.metric_unit),
-        }
+        out["regression"] = _regression_without_model(campaign, req, draws, stop)
         return out
     entry, rows, idx = signal_budget(model, req, stop)
     regs = model.regressors(draws)
@@ -597,17 +588,28 @@ def _direct_budget(
         out["note"] = entry
     else:
         out.update(entry)
+    out["regression"] = _regression_without_model(campaign, req, draws, stop)
+    return out
+
+
+def _regression_without_model(
+    campaign: Any, req: Requirement, draws: dict[str, FloatArray], stop: float
+) -> dict[str, Any]:
+    """The runs' regression on their own draws, with no predicted slopes.
+
+    The response is the signed error at the requirement's time for a ``value``
+    criterion, else the per-run metric.
+    """
     regs = _generic_regressors(draws)
     if req.criterion == "value":
         at = stop if req.at is None else req.at
         y, what = signed_errors(campaign, req, at), f"signed error at {at:g} s"
     else:
         y, what = campaign.metric_values(req), "the per-run metric"
-    out["regression"] = {
+    return {
         "response": what,
         **regression_table(y, regs, [None] * len(regs), req.metric_unit),
     }
-    return out
 
 
 def _generic_regressors(draws: dict[str, FloatArray]) -> list[Regressor]:
