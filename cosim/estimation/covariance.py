@@ -37,8 +37,29 @@ Transition = Callable[[int], tuple[FloatArray, FloatArray]]
 Measurement = Callable[[int], tuple[FloatArray, FloatArray] | None]
 
 
+class _Recorded:
+    """What a covariance history and a budget share: the recorded times and their rows."""
+
+    time: FloatArray
+
+    def index(self, t: float) -> int:
+        """Row of the recorded time nearest to ``t``.
+
+        Parameters
+        ----------
+        t : float
+            Time [s].
+
+        Returns
+        -------
+        int
+            Index into :attr:`time` (and the first axis of the recorded arrays).
+        """
+        return int(np.argmin(np.abs(self.time - t)))
+
+
 @dataclass(frozen=True)
-class CovarianceHistory:
+class CovarianceHistory(_Recorded):
     """A filter's covariance over time, as recorded by :func:`covariance_analysis`.
 
     ``at(t)`` is the covariance matrix and ``index(t)`` its row, both at the recorded
@@ -63,21 +84,6 @@ class CovarianceHistory:
     def sigma(self) -> FloatArray:
         """1-sigma of every state at every recorded time, shape (m, n) (states' units)."""
         return np.sqrt(np.diagonal(self.P, axis1=1, axis2=2))
-
-    def index(self, t: float) -> int:
-        """Row of the recorded time nearest to ``t``.
-
-        Parameters
-        ----------
-        t : float
-            Time [s].
-
-        Returns
-        -------
-        int
-            Index into :attr:`time` (and the first axis of :attr:`P`, :attr:`sigma`).
-        """
-        return int(np.argmin(np.abs(self.time - t)))
 
     def at(self, t: float) -> FloatArray:
         """Covariance matrix at the recorded time nearest to ``t``.
@@ -168,7 +174,7 @@ BudgetMeasurement = Callable[[int], tuple[FloatArray, dict[str, FloatArray]] | N
 
 
 @dataclass(frozen=True)
-class CovarianceBudget:
+class CovarianceBudget(_Recorded):
     """A covariance analysis split by error source (:func:`covariance_budget`).
 
     The filter is linear, so its estimation error is a sum of independent
@@ -196,21 +202,6 @@ class CovarianceBudget:
     parts: dict[str, FloatArray]
     transfer: FloatArray
     names: tuple[str, ...] = ()
-
-    def index(self, t: float) -> int:
-        """Row of the recorded time nearest to ``t``.
-
-        Parameters
-        ----------
-        t : float
-            Time [s].
-
-        Returns
-        -------
-        int
-            Index into :attr:`time`.
-        """
-        return int(np.argmin(np.abs(self.time - t)))
 
     def variances(self, h: ArrayLike) -> tuple[FloatArray, dict[str, FloatArray]]:
         """Variance of a linear function ``y = h e`` of the error, total and per source.
