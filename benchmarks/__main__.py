@@ -25,10 +25,14 @@ def main(selected: list[str]) -> int:
             continue
         if selected and info.name.removeprefix("bench_") not in selected:
             continue
-        module = importlib.import_module(f"benchmarks.{info.name}")
         start = time.perf_counter()
         print(f"running {info.name} ...", file=sys.stderr, flush=True)
-        for row in module.bench():
+        try:  # a broken row is reported as such; the other rows still run
+            module = importlib.import_module(f"benchmarks.{info.name}")
+            got = module.bench()
+        except Exception as exc:
+            got = [{"name": info.name, "met": None, "info": f"failed: {type(exc).__name__}: {exc}"}]
+        for row in got:
             row.setdefault("module", info.name)
             rows.append(row)
         print(f"  {time.perf_counter() - start:.1f} s", file=sys.stderr, flush=True)
