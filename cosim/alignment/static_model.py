@@ -56,7 +56,7 @@ loop :func:`cosim.estimation.covariance.covariance_analysis`.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -124,6 +124,31 @@ class FilterTuning:
     q_accel: float = 50.0 * MICRO_G
     q_gyro: float = 0.01 * DEG_PER_HOUR
     r_vel: float = 0.1
+
+    @classmethod
+    def from_parameters(cls, p: Mapping[str, float]) -> FilterTuning:
+        """The tuning of an alignment block from its parameter values.
+
+        Parameters
+        ----------
+        p : mapping
+            The block's parameters by FMI name (``p0_vel``, ``p0_att[1..3]``,
+            ``p0_accel_bias``, ``p0_gyro_drift``, ``q_accel``, ``q_gyro``, ``r_vel``), in
+            the units of the attributes.
+
+        Returns
+        -------
+        FilterTuning
+        """
+        return cls(
+            p0_vel=p["p0_vel"],
+            p0_att=(float(p["p0_att[1]"]), float(p["p0_att[2]"]), float(p["p0_att[3]"])),
+            p0_accel_bias=p["p0_accel_bias"],
+            p0_gyro_drift=p["p0_gyro_drift"],
+            q_accel=p["q_accel"],
+            q_gyro=p["q_gyro"],
+            r_vel=p["r_vel"],
+        )
 
     def P0(self) -> FloatArray:
         """Initial covariance, shape (10, 10), SI units squared."""

@@ -122,15 +122,7 @@ def scenario_facts(path: Path) -> ScenarioFacts:
         def vec(p: dict, name: str) -> np.ndarray:
             return np.array([p[f"{name}[{i}]"] for i in (1, 2, 3)], dtype=float)
 
-        tuning = FilterTuning(
-            p0_vel=a["p0_vel"],
-            p0_att=tuple(vec(a, "p0_att")),
-            p0_accel_bias=a["p0_accel_bias"],
-            p0_gyro_drift=a["p0_gyro_drift"],
-            q_accel=a["q_accel"],
-            q_gyro=a["q_gyro"],
-            r_vel=a["r_vel"],
-        )
+        tuning = FilterTuning.from_parameters(a)
         bdef = {v.name: v.start for v in system.blocks["base"].variables.values()}
         base = {**bdef, **params["base"]}
         angle = None

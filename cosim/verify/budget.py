@@ -183,15 +183,7 @@ def _static_model(scenario: Any, values: dict[str, dict[str, Any]], block: str) 
     from models.turntable import Turntable
 
     a = values[block]
-    tuning = FilterTuning(
-        p0_vel=a["p0_vel"],
-        p0_att=tuple(_vec(a, "p0_att")),
-        p0_accel_bias=a["p0_accel_bias"],
-        p0_gyro_drift=a["p0_gyro_drift"],
-        q_accel=a["q_accel"],
-        q_gyro=a["q_gyro"],
-        r_vel=a["r_vel"],
-    )
+    tuning = FilterTuning.from_parameters(a)
     base = _of_source(scenario, "StationaryBase")
     base_rpy = _vec(values[base], "rpy0") if base else np.zeros(3)
     t0 = float(a["coarse_time"]) if int(a["init_mode"]) == 0 else 0.0
