@@ -478,8 +478,13 @@ def _imu(
     return out
 
 
+#: Truth nodes per whole-array call of the kinematics (arrays of ~250 kB each: they stay
+#: in the processor's cache).
+BLOCK_NODES = 10500
+
+
 def simulate(
-    params: ChainParameters, stop: float | None = None, block_steps: int = 500
+    params: ChainParameters, stop: float | None = None, block_steps: int | None = None
 ) -> dict[str, np.ndarray]:
     """Run the whole chain at once.
 
@@ -492,7 +497,8 @@ def simulate(
     block_steps : int, optional
         The ship and lever-arm kinematics are evaluated ``block_steps`` macro steps at a
         time (whole-array code on arrays that stay in the processor's cache; one array
-        per run is up to three times slower).
+        per run is up to three times slower). Default: about :data:`BLOCK_NODES` truth
+        nodes per call (500 steps of 21 nodes at 10 ms, 104 of 101 nodes at 50 ms).
 
     Returns
     -------
@@ -505,6 +511,9 @@ def simulate(
     h, t0 = params.step, params.start
     n_steps = int(round(((params.stop if stop is None else stop) - t0) / h))
     b = params.blocks
+    if block_steps is None:
+        nodes = 2 * substeps(h, float(b["ship"]["dt_truth"])) + 1
+        block_steps = max(1, BLOCK_NODES // nodes)
     flex = _flexure(b["flexure"], h, n_steps)
     truth = _ship_truth(b["ship"])
     first = _ship(b["ship"], truth, t0, h, 0, 0)
