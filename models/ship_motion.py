@@ -45,7 +45,15 @@ from models.step_paths import simpson_nodes, substeps
 
 
 class ShipMotion(Block):
-    """Moored ship motion: sinusoidal attitude and linear motion, exact rates and specific force."""
+    """Moored ship motion: sinusoidal attitude and linear motion, exact rates and specific force.
+
+    Attributes
+    ----------
+    truth_evaluations : int
+        Vectorised truth evaluations since initialisation (each covers up to
+        :data:`AHEAD_STEPS` steps): about ``n / AHEAD_STEPS`` for ``n`` steps on the
+        master's grid, one per step if the steps are irregular.
+    """
 
     variables = (
         parameter("lat0", 30.0 * DEG, "rad", "latitude of the mooring"),
@@ -76,6 +84,7 @@ class ShipMotion(Block):
         self._nodes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
         self._ahead: _Ahead | None = None
         self._ahead_size = 1
+        self.truth_evaluations = 0
         truth, rpy, v_n = self._truth(np.array([self.start_time]))
         self._publish(truth, rpy, v_n, 0)
         self.dtheta_b = np.zeros(3)
@@ -148,6 +157,7 @@ class ShipMotion(Block):
         elif previous is not None:
             self._ahead_size = min(AHEAD_STEPS, 2 * self._ahead_size)
         size = self._ahead_size
+        self.truth_evaluations += 1
         n = substeps(h, self.dt_truth)
         if n not in self._nodes:
             self._nodes[n] = simpson_nodes(n)
