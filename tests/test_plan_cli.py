@@ -134,12 +134,19 @@ def test_plan_prints_runs_and_time_per_requirement(tmp_path: Path) -> None:
 
 
 def test_until_decided_stops_and_resume_finishes_an_interrupted_one(tmp_path: Path) -> None:
+    # The block crashblocks:Crasher (its output is in no requirement and it is not
+    # randomized: no metric changes) holds every run after the first 14 at its
+    # initialisation while CRASHERS_GATE is set: the campaign, about 70 runs/s on an idle
+    # machine, cannot reach its end before the SIGINT. The resumed run has no gate.
     scenario = tiny(tmp_path)
+    scenario.write_text(scenario.read_text() + '\n[blocks.gate]\nclass = "crashblocks:Crasher"\n')
+    (tmp_path / "gate").mkdir()
     out = tmp_path / "seq"
     args = ("verify", scenario, "--until-decided", "--runs", 10, "--max-runs", 80,
             "--report", out, "--workers", 1)  # fmt: skip
+    gated = dict(env(), CRASHERS_GATE=str(tmp_path / "gate"), CRASHERS_OPEN="14")
     proc = subprocess.Popen(
-        command(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env(),
+        command(*args), stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=gated,
         cwd=tmp_path,
     )  # fmt: skip
     runs_dir = out / "runs"
