@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 from dataclasses import dataclass
@@ -12,6 +13,13 @@ import pytest
 
 TESTS = Path(__file__).resolve().parent
 ROOT = TESTS.parent
+
+# A shell that starts the suite in the background (`make test &`, nohup, some CI runners)
+# starts it with SIGINT ignored, and an ignored signal stays ignored in every child: the
+# tests of Ctrl-C would then send a signal nobody receives. Python's own handler is put
+# back here; children started from a process that handles SIGINT get the default again.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 @pytest.fixture(scope="session")
