@@ -139,9 +139,8 @@ def test_an_interrupted_run_leaves_nothing_and_a_killed_ones_folders_are_swept(
     proc = _cli(tmp, "run", DEMO, "--fmu-dir", BUILT, "--out", tmp_path / "o", wait=False)
     deadline = time.monotonic() + 120
     while not list(tmp.glob(f"{PREFIX}*")) and time.monotonic() < deadline:
-        time.sleep(0.05)
-    time.sleep(0.5)
-    proc.kill()
+        time.sleep(0.01)
+    proc.kill()  # at once: on an idle machine the run may end within half a second
     proc.communicate(timeout=60)
     left = list(tmp.glob(f"{PREFIX}{proc.pid}_*"))
     assert left, "expected the killed run's folders"
