@@ -412,7 +412,7 @@ class Strapdown:
         self.C_prev = self.C_s_n.copy()
         self.phi = np.zeros(3)
         self.dv_n = np.zeros(3)
-        self._prev: tuple[FloatArray, FloatArray] | None = None
+        self._prev: tuple[float, ...] | None = None  # last (dth, dvb), two-sample
         self._count = 0
         self.refresh()
         self.w_in = self.w_ie
@@ -431,21 +431,6 @@ class Strapdown:
         self._h_nav = -1.0
         self._nav_rot = _I3
 
-    def _increments(self, dth: FloatArray, dvb: FloatArray) -> tuple[FloatArray, FloatArray]:
-        """``phi`` and ``u`` of the step (module docstring)."""
-        if self.options.coning == "table-axis":
-            phi = table_axis_coning(dth, self.table_axis)
-            return phi, rotation_compensation(phi) @ dvb
-        if self._prev is None:  # no previous increment: no coning/sculling terms this step
-            self._prev = (dth, dvb)
-        p_th, p_dv = self._prev
-        self._prev = (dth, dvb)
-        phi = dth + cross(p_th, dth) / 12.0
-        c1 = cross(dth, dvb)
-        u = dvb + 0.5 * c1 + cross(dth, c1) / 6.0
-        u += (cross(p_th, dvb) + cross(p_dv, dth)) / 12.0
-        return phi, u
-
     def step(self, dtheta: ArrayLike, dv: ArrayLike, h: float) -> None:
         """Advance by one step of measured increments.
 
@@ -458,10 +443,110 @@ class Strapdown:
         h : float
             Step [s].
         """
+        if self.options.coning == "two-sample":
+            self._step_two_sample(dtheta, dv, h)
+        else:
+            self._step_table_axis(dtheta, dv, h)
+        self._count += 1
+        every = self.options.orthonormalise_every
+        if every and self._count % every == 0:
+            c = self.C_s_n
+            self.C_s_n = 1.5 * c - 0.5 * (c @ c.T @ c)
+
+    def _step_two_sample(self, dtheta: ArrayLike, dv: ArrayLike, h: float) -> None:
+        """:meth:`step` with two-sample increments, in scalar arithmetic.
+
+        The same operations, in the same order, as the array formulas of the module
+        docstring (every elementwise result bit for bit); only the two attitude products
+        stay numpy matrix products.
+        """
+        o = self.options
+        t0, t1, t2 = np.asarray(dtheta, dtype=float).tolist()
+        d0, d1, d2 = np.asarray(dv, dtype=float).tolist()
+        b0, b1, b2 = self.gyro_bias.tolist()
+        a0, a1, a2 = self.accel_bias.tolist()
+        t0, t1, t2 = t0 - b0 * h, t1 - b1 * h, t2 - b2 * h
+        d0, d1, d2 = d0 - a0 * h, d1 - a1 * h, d2 - a2 * h
+        if self._prev is None:  # no previous increment: no coning/sculling terms this step
+            self._prev = (t0, t1, t2, d0, d1, d2)
+        p0, p1, p2, q0, q1, q2 = self._prev
+        self._prev = (t0, t1, t2, d0, d1, d2)
+        # phi = dth + dth' x dth / 12
+        phi = (
+            t0 + (p1 * t2 - p2 * t1) / 12.0,
+            t1 + (p2 * t0 - p0 * t2) / 12.0,
+            t2 + (p0 * t1 - p1 * t0) / 12.0,
+        )
+        # u = dvb + c1 / 2 + dth x c1 / 6 + (dth' x dvb + dvb' x dth) / 12,  c1 = dth x dvb
+        c0_, c1_, c2_ = t1 * d2 - t2 * d1, t2 * d0 - t0 * d2, t0 * d1 - t1 * d0
+        u = (
+            d0
+            + 0.5 * c0_
+            + (t1 * c2_ - t2 * c1_) / 6.0
+            + ((p1 * d2 - p2 * d1) + (q1 * t2 - q2 * t1)) / 12.0,
+            d1
+            + 0.5 * c1_
+            + (t2 * c0_ - t0 * c2_) / 6.0
+            + ((p2 * d0 - p0 * d2) + (q2 * t0 - q0 * t2)) / 12.0,
+            d2
+            + 0.5 * c2_
+            + (t0 * c1_ - t1 * c0_) / 6.0
+            + ((p0 * d1 - p1 * d0) + (q0 * t1 - q1 * t0)) / 12.0,
+        )
+        v = self.v_n
+        v0, v1, v2 = v.tolist()
+        if o.midpoint_velocity:
+            w0, w1, w2 = self.v_prev.tolist()
+            r0, r1, r2 = 1.5 * v0 - 0.5 * w0, 1.5 * v1 - 0.5 * w1, 1.5 * v2 - 0.5 * w2
+        else:
+            r0, r1, r2 = v0, v1, v2
+        e0, e1, e2 = self.w_ie.tolist()
+        k0, k1, k2 = self._cor_ie.tolist()
+        if o.transport_rate:
+            n0, n1, n2 = r1 / self._rn, -r0 / self._rm, -r1 * self._tan / self._rn
+            e0, e1, e2 = e0 + n0, e1 + n1, e2 + n2
+            k0, k1, k2 = k0 + n0, k1 + n1, k2 + n2
+            z0, z1, z2 = e0 * h, e1 * h, e2 * h
+            nav_rot = rotvec_to_dcm_3((-z0, -z1, -z2))
+            w_in, cor = np.array([e0, e1, e2]), np.array([k0, k1, k2])
+        else:
+            w_in, cor = self.w_ie, self._cor_ie
+            z0, z1, z2 = e0 * h, e1 * h, e2 * h
+            nav_rot = self._rot_nav(np.array([z0, z1, z2]), h)
+        c0 = self.C_s_n
+        u0, u1, u2 = (c0 @ np.array(u)).tolist()
+        # dv_n = cu - zeta x cu / 2
+        f0 = u0 - 0.5 * (z1 * u2 - z2 * u1)
+        f1 = u1 - 0.5 * (z2 * u0 - z0 * u2)
+        f2 = u2 - 0.5 * (z0 * u1 - z1 * u0)
+        if o.vertical:
+            g = self.g
+            v_new = np.array(
+                [
+                    v0 + f0 + (0.0 - (k1 * r2 - k2 * r1)) * h,
+                    v1 + f1 + (0.0 - (k2 * r0 - k0 * r2)) * h,
+                    v2 + f2 + (g - (k0 * r1 - k1 * r0)) * h,
+                ]
+            )
+        else:
+            k = k2 * h  # -(2 w_ie + w_en) x v, horizontal, v_D = 0: [c_D v_E, -c_D v_N]
+            v_new = np.array([v0 + f0 + k * r1, v1 + f1 - k * r0, 0.0])
+        if o.transport_rate:
+            self.lat += r0 * h / self._rm
+        self.C_prev, self.w_in, self.cor = c0, w_in, cor
+        self.phi = np.array(phi)
+        self.dv_n = np.array([f0, f1, f2])
+        self.v_prev = v
+        self.v_n = v_new
+        self.C_s_n = nav_rot @ c0 @ rotvec_to_dcm_3(phi)
+
+    def _step_table_axis(self, dtheta: ArrayLike, dv: ArrayLike, h: float) -> None:
+        """:meth:`step` with table-axis increments (array arithmetic)."""
         o = self.options
         dth = np.asarray(dtheta, dtype=float) - self.gyro_bias * h
         dvb = np.asarray(dv, dtype=float) - self.accel_bias * h
-        phi, u = self._increments(dth, dvb)
+        phi = table_axis_coning(dth, self.table_axis)
+        u = rotation_compensation(phi) @ dvb
         v = self.v_n
         v_ref = 1.5 * v - 0.5 * self.v_prev if o.midpoint_velocity else v
         if o.transport_rate:
@@ -492,11 +577,6 @@ class Strapdown:
         self.v_prev = v
         self.v_n = v_new
         self.C_s_n = nav_rot @ c0 @ rotvec_to_dcm_3(phi)
-        self._count += 1
-        every = o.orthonormalise_every
-        if every and self._count % every == 0:
-            c = self.C_s_n
-            self.C_s_n = 1.5 * c - 0.5 * (c @ c.T @ c)
 
     def _rot_nav(self, zeta: FloatArray, h: float) -> FloatArray:
         """``exp(-[zeta x])`` for a constant ``w_in`` (cached per step size)."""

@@ -87,6 +87,7 @@ stage is not designed for (README, seed 001).
 
 from __future__ import annotations
 
+import math
 from collections import deque
 
 import numpy as np
@@ -103,7 +104,7 @@ from cosim.alignment.transfer_model import (
 )
 from models.block import Block, input_, output, parameter
 from models.constants import ARCMIN, DEG
-from models.conventions import dcm_to_euler, euler_to_dcm, wrap_angle
+from models.conventions import dcm_to_euler_3, euler_to_dcm, euler_to_dcm_3, wrap_angle
 
 FloatArray = NDArray[np.float64]
 
@@ -287,7 +288,7 @@ class TransferAlignment(Block):
     # ------------------------------------------------------------------ stepping
     def step(self, t: float, h: float) -> None:
         self._check_step(h)
-        self._hist.appendleft(euler_to_dcm(np.asarray(self.rpy_master, dtype=float)))
+        self._hist.appendleft(euler_to_dcm_3(self.rpy_master))
         self._n += 1
         f = self._filter
         if f.nav is None:
@@ -309,6 +310,7 @@ class TransferAlignment(Block):
             self._P_cached = P
             self._P_att = P[lay.att, lay.att].copy()
             self._P_att_inv = np.linalg.inv(self._P_att)
+            self._att_T = None  # the shown attitude error's E^T, made when stage 1 needs it
             self.accel_bias_sigma = np.sqrt(np.diag(P[lay.nabla, lay.nabla]))
             self.gyro_drift_sigma = np.sqrt(np.diag(P[lay.eps, lay.eps]))
             if lay.flexure:
@@ -320,20 +322,38 @@ class TransferAlignment(Block):
             sd = f.nav
             self.accel_bias = (sd.accel_bias if sd is not None else 0.0) + x_show[lay.nabla]
             self.gyro_drift = (sd.gyro_bias if sd is not None else 0.0) + x_show[lay.eps]
+        # per step: the attitude outputs, scalar arithmetic around the matrix products
         if f.nav is None:
             c_est = self._hist[0]
         else:  # stage 1 runs open loop: apply the best hypothesis' attitude error
             c_est = f.nav.C_s_n
             if f.stage == 1.0:
-                c_est = euler_to_dcm(x_show[lay.att]).T @ c_est
-        c_m = euler_to_dcm(np.asarray(self.rpy_m_true, dtype=float))
-        c_s = euler_to_dcm(np.asarray(self.rpy_s_true, dtype=float))
-        rel_est = dcm_to_euler(c_m.T @ c_est)
-        rel_true = dcm_to_euler(c_m.T @ c_s)
-        self.rpy_err = wrap_angle(rel_est - rel_true) / ARCMIN
-        B = euler_rate_matrix_inv(rel_est) @ c_m.T
-        self.rpy_sigma = np.sqrt(np.clip(np.diag(B @ self._P_att @ B.T), 0.0, None)) / ARCMIN
-        self.rel_rpy = dcm_to_euler(self._hist[0].T @ c_est)
-        d = c_est @ c_s.T  # small-angle rotation vector of the error (exact for NEES use)
-        e_n = 0.5 * np.array([d[2, 1] - d[1, 2], d[0, 2] - d[2, 0], d[1, 0] - d[0, 1]])
+                if self._att_T is None:
+                    self._att_T = euler_to_dcm_3(x_show[lay.att]).T
+                c_est = self._att_T @ c_est
+        c_m_t = euler_to_dcm_3(self.rpy_m_true).T
+        c_s = euler_to_dcm_3(self.rpy_s_true)
+        rel_est = dcm_to_euler_3(c_m_t @ c_est)
+        e0, e1, e2 = rel_est.tolist()
+        r0, r1, r2 = dcm_to_euler_3(c_m_t @ c_s).tolist()
+        self.rpy_err = np.array(
+            [
+                wrap_angle(e0 - r0) / ARCMIN,
+                wrap_angle(e1 - r1) / ARCMIN,
+                wrap_angle(e2 - r2) / ARCMIN,
+            ]
+        )
+        B = euler_rate_matrix_inv(rel_est) @ c_m_t
+        s0, s1, s2 = (B @ self._P_att @ B.T).diagonal().tolist()
+        self.rpy_sigma = np.array(
+            [
+                math.sqrt(max(s0, 0.0)) / ARCMIN,
+                math.sqrt(max(s1, 0.0)) / ARCMIN,
+                math.sqrt(max(s2, 0.0)) / ARCMIN,
+            ]
+        )
+        self.rel_rpy = dcm_to_euler_3(self._hist[0].T @ c_est)
+        # small-angle rotation vector of the error (exact for NEES use)
+        (_, d01, d02), (d10, _, d12), (d20, d21, _) = (c_est @ c_s.T).tolist()
+        e_n = np.array([0.5 * (d21 - d12), 0.5 * (d02 - d20), 0.5 * (d10 - d01)])
         self.nees = float(e_n @ self._P_att_inv @ e_n)

@@ -119,7 +119,6 @@ from models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0, OMEGA_IE
 from models.conventions import (
     cross,
     dcm_to_euler,
-    dcm_to_rotvec,
     euler_to_dcm,
     rotvec_to_dcm,
     skew,
@@ -687,9 +686,66 @@ def master_rate(c_hist: list[FloatArray], h: float) -> FloatArray:
     k = len(c_hist)
     if k < 2:
         return np.zeros(3)
-    rho = dcm_to_rotvec(np.array([c0.T @ c for c in c_hist[1:5]]))
+    c0_t = c0.T
+    rho = relative_rotvecs([c0_t @ c for c in c_hist[1:5]])
     if k >= 5:
-        return (-48.0 * rho[0] + 36.0 * rho[1] - 16.0 * rho[2] + 3.0 * rho[3]) / (12.0 * h)
+        r1, r2, r3, r4 = rho
+        s = 12.0 * h
+        return np.array(
+            [(-48.0 * r1[i] + 36.0 * r2[i] - 16.0 * r3[i] + 3.0 * r4[i]) / s for i in range(3)]
+        )
     if k >= 3:
-        return (-4.0 * rho[0] + rho[1]) / (2.0 * h)
-    return -rho[0] / h
+        r1, r2 = rho[:2]
+        return np.array([(-4.0 * r1[i] + r2[i]) / (2.0 * h) for i in range(3)])
+    return np.array([-r / h for r in rho[0]])
+
+
+def relative_rotvecs(mats: list[FloatArray]) -> list[tuple[float, float, float]]:
+    """Rotation vectors of a few DCMs: :func:`models.conventions.dcm_to_rotvec`, per matrix.
+
+    The same arithmetic as the batched function (Shepperd's quaternion, normalised,
+    then ``2 atan2(|q_v|, q_0) q_v / |q_v|``), bit for bit, in scalar operations around
+    one ``np.arctan2`` call: for the master's rate from four attitudes the batched
+    call's array bookkeeping costs ten times the arithmetic.
+
+    Parameters
+    ----------
+    mats : list of ndarray, shape (3, 3)
+        Orthonormal DCMs.
+
+    Returns
+    -------
+    list of tuple of float
+        One rotation vector [rad] per matrix (angle in [0, pi]).
+    """
+    quats = []
+    for c in mats:
+        (c00, c01, c02), (c10, c11, c12), (c20, c21, c22) = c.tolist()
+        tr = c00 + c11 + c22
+        cand = (1.0 + tr, 1.0 + 2.0 * c00 - tr, 1.0 + 2.0 * c11 - tr, 1.0 + 2.0 * c22 - tr)
+        j = cand.index(max(cand))
+        big = math.sqrt(max(cand[j], 0.0))
+        d32, d13, d21 = c21 - c12, c02 - c20, c10 - c01
+        s10, s20, s21 = c10 + c01, c20 + c02, c21 + c12
+        if j == 0:
+            q = (big, d32 / big, d13 / big, d21 / big)
+        elif j == 1:
+            q = (d32 / big, big, s10 / big, s20 / big)
+        elif j == 2:
+            q = (d13 / big, s10 / big, big, s21 / big)
+        else:
+            q = (d21 / big, s20 / big, s21 / big, big)
+        q0, q1, q2, q3 = (0.5 * e for e in q)
+        if q0 < 0.0:
+            q0, q1, q2, q3 = -q0, -q1, -q2, -q3
+        n = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+        q0, q1, q2, q3 = q0 / n, q1 / n, q2 / n, q3 / n
+        if q0 < 0.0:
+            q0, q1, q2, q3 = -q0, -q1, -q2, -q3
+        quats.append((q0, q1, q2, q3, math.sqrt(q1 * q1 + q2 * q2 + q3 * q3)))
+    angles = (2.0 * np.arctan2([q[4] for q in quats], [q[0] for q in quats])).tolist()
+    out = []
+    for (q0, q1, q2, q3, sv), angle in zip(quats, angles, strict=True):
+        f = 2.0 / q0 if sv < 1e-12 else angle / sv
+        out.append((f * q1, f * q2, f * q3))
+    return out
