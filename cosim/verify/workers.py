@@ -1,42 +1,37 @@
 """Where the runs of a campaign go: this process, a local pool, or a Dask cluster.
 
-A worker builds the scenario's blocks (loads its FMUs) once per campaign, the first time
-it sees a :class:`WorkerSpec`, and resets them between runs; each :class:`Job` sets its
+A worker builds the scenario's blocks (loads its FMUs) once, the first time it sees a
+:class:`WorkerSpec`, and resets them between runs; each :class:`Job` sets its
 parameters on a copy of the built system's own before the run. A run's numbers depend
-only on its job (seeds, parameters, stratified draws), never on the worker that ran it.
+only on its job (seeds, parameters, stratified draws), never on the worker that ran it
+nor on the runs it ran before.
 
 - ``workers == 1``: in this process, one after the other.
-- ``workers > 1``: worker processes forked from a ``forkserver`` that imported the
-  simulation code once (where the platform has no ``forkserver``: spawned processes);
-  each builds the blocks when it starts and runs one job at a time, sent to it through
-  its own pipe, so the parent always knows which run each process is running.
+- ``workers > 1``: local worker processes (:class:`cosim.verify.pool.WorkerPool`), each
+  running one job at a time sent to it through its own pipe, so the parent always knows
+  which run each process is running. A pool given to :func:`run_jobs` keeps its
+  processes, and their built blocks, from one call to the next (the looks of
+  ``verify --until-decided``); without one, a pool lives for one call.
 - ``cluster = "tcp://host:8786"``: a Dask distributed cluster; each worker thread builds
   the blocks once on its first run. The workers must see the scenario and FMU files at
   the same paths (a shared file system).
 
 A worker process that dies (an FMU calling ``abort()``, a segmentation fault, a model
-calling ``os._exit``, the kernel's OOM killer) loses only the run it was running: the
-parent sees its pipe close, reads what the process last noted on its
-:class:`cosim.isolate.StepBoard` (the block that was stepping, the time), starts a
-fresh process in its place and runs that run again first. A run whose worker dies
-:data:`CRASH_ATTEMPTS` times is recorded as ``"crashed"`` (its seeds, the signal or exit
-code, the block and time), a failed run for the requirements' ``on_failure``, and the
-campaign goes on. On Dask the scheduler retries a task whose worker died and gives up
-after ``distributed.scheduler.allowed-failures`` deaths (``KilledWorker``): that run is
-recorded as crashed (without the block: Dask workers keep no board).
+calling ``os._exit``, the kernel's OOM killer) loses only the run it was running
+(:mod:`cosim.verify.pool`): that run is run again on a fresh process and recorded as
+``"crashed"`` when its worker dies again. On Dask the scheduler retries a task whose
+worker died and gives up after ``distributed.scheduler.allowed-failures`` deaths
+(``KilledWorker``): that run is recorded as crashed (without the block: Dask workers
+keep no board).
 """
 
 from __future__ import annotations
 
 import contextlib
 import copy
-import multiprocessing
-import multiprocessing.connection
 import os
-import pickle
 import signal
 import socket
-import sys
 import threading
 import time
 import uuid
@@ -48,17 +43,10 @@ from typing import Any
 import numpy as np
 
 from cosim.errors import SimulationError, UserError
-from cosim.isolate import IDLE, LOADING, StepBoard, describe_death, describe_exit, watch
+from cosim.isolate import StepBoard, watch
 from cosim.scenario import build_master, load_scenario
 from cosim.verify.records import RunRecord, decimation
 from cosim.verify.requirements import Requirement, RunMetric, error_signal, evaluate
-
-#: Modules the forkserver imports once, so that forked workers start without imports.
-PRELOAD = ["cosim.verify.workers", "cosim.alignment", "models"]
-#: A run whose worker process dies this many times is recorded as crashed.
-CRASH_ATTEMPTS = 2
-#: Worker processes that may die before they are ready (building the blocks) in a row.
-MAX_START_FAILURES = 3
 
 
 class CampaignError(UserError):
@@ -312,26 +300,26 @@ def run_one(spec: WorkerSpec, job: Job) -> RunRecord:
     )
 
 
-def pool_context() -> multiprocessing.context.BaseContext:
-    """The start method of local workers: a preloaded forkserver, else spawn.
+def build_worker(spec: WorkerSpec, board: StepBoard | None = None) -> None:
+    """Build the blocks of a campaign in this thread, ready for :func:`run_one`.
 
-    The forkserver starts with the first pool of this process and imports the modules
-    this process has loaded from ``cosim`` and ``models`` by then (for a campaign:
-    everything its scenario's blocks need); every worker is forked from it, with no
-    imports of its own.
+    Parameters
+    ----------
+    spec : WorkerSpec
+        The campaign.
+    board : StepBoard, optional
+        In a local worker process: the board where every block call is noted (set once,
+        for the process's life).
 
-    Returns
-    -------
-    multiprocessing context
+    Raises
+    ------
+    CampaignError
+        The scenario file changed since the campaign started.
     """
-    if "forkserver" in multiprocessing.get_all_start_methods():
-        ctx = multiprocessing.get_context("forkserver")
-        # what this process has imported to check the scenario (its blocks' modules
-        # included): the forkserver imports it once, the workers fork with it loaded
-        loaded = [m for m in sys.modules if m.split(".")[0] in ("cosim", "models")]
-        ctx.set_forkserver_preload([*PRELOAD, *sorted(set(loaded) - set(PRELOAD))])
-        return ctx
-    return multiprocessing.get_context("spawn")
+    global _BOARD
+    if board is not None:
+        _BOARD = board
+    _state(spec)
 
 
 def run_jobs(
@@ -341,6 +329,7 @@ def run_jobs(
     *,
     workers: int = 1,
     cluster: str | None = None,
+    pool: Any = None,
 ) -> None:
     """Run jobs and hand each finished record to ``done`` (in completion order).
 
@@ -353,31 +342,62 @@ def run_jobs(
     done : callable
         Called in this process with each :class:`RunRecord` as it finishes.
     workers : int
-        Local processes (1: this process).
+        Local processes (1: this process), for a pool that lives for this call.
     cluster : str, optional
         Address of a Dask scheduler; replaces local workers.
+    pool : cosim.verify.pool.WorkerPool, optional
+        Run on this pool (its size replaces ``workers``); its processes and built blocks
+        stay for its next call.
 
     Raises
     ------
     CampaignError
-        The Dask scheduler cannot be reached.
+        The Dask scheduler cannot be reached, or local workers cannot start.
     """
     jobs = list(jobs)
     if not jobs:
         return
     if cluster:
         _run_dask(spec, jobs, done, cluster)
+    elif pool is not None:
+        pool.run(spec, jobs, done)
     elif workers > 1 and len(jobs) > 1:
-        _run_pool(spec, jobs, done, workers)
+        from cosim.verify.pool import WorkerPool  # it runs the jobs with run_one
+
+        with WorkerPool(workers) as once:
+            once.run(spec, jobs, done)
     else:
-        with _interrupts_outside_fmus():
-            try:
-                for job in jobs:
-                    record = run_one(spec, job)
-                    _raise_pending()
-                    done(record)
-            finally:
-                release_worker_state()
+        run_here(spec, jobs, done)
+
+
+def run_here(
+    spec: WorkerSpec, jobs: Sequence[Job], done: Callable[[RunRecord], None], *, keep: bool = False
+) -> None:
+    """Run jobs in this process, one after the other (``--workers 1``).
+
+    Parameters
+    ----------
+    spec : WorkerSpec
+        The campaign.
+    jobs : sequence of Job
+        The runs.
+    done : callable
+        Called with each :class:`RunRecord` as it finishes.
+    keep : bool
+        Keep the built blocks for the next call (a pool of one); they are released on an
+        error or a Ctrl-C, and by :func:`release_worker_state`.
+    """
+    with _interrupts_outside_fmus():
+        try:
+            for job in jobs:
+                record = run_one(spec, job)
+                _raise_pending()
+                done(record)
+        except BaseException:
+            release_worker_state()
+            raise
+        if not keep:
+            release_worker_state()
 
 
 #: Ctrl-C noted while an FMU's own Python code ran, raised at the next recorded row.
@@ -471,169 +491,6 @@ def crashed_record(
         t_end=t_end,
         tag=job.tag,
     )
-
-
-def _exit_on_terminate(signum: int, frame: Any) -> None:
-    raise SystemExit(128 + signum)  # unwinds: the blocks are terminated, folders removed
-
-
-def _picklable(exc: BaseException) -> BaseException:
-    try:
-        pickle.loads(pickle.dumps(exc))
-        return exc
-    except Exception:
-        return CampaignError(f"{type(exc).__name__}: {exc}")
-
-
-def _worker_main(spec: WorkerSpec, conn: Any, raw: Any) -> None:
-    """A local worker process: build the blocks, then run the jobs the parent sends.
-
-    Messages to the parent: ``("ready",)`` once built, ``("done", record)`` per job,
-    ``("error", exception)`` when it cannot go on; a job of None ends the process.
-    """
-    global _BOARD
-    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's business
-    signal.signal(signal.SIGTERM, _exit_on_terminate)
-    _BOARD = StepBoard(raw)
-    _BOARD.post(LOADING)
-    try:
-        try:
-            _state(spec)
-        except Exception as exc:
-            conn.send(("error", _picklable(exc)))
-            return
-        _BOARD.post(IDLE)
-        conn.send(("ready",))
-        while True:
-            try:
-                job = conn.recv()
-            except EOFError:  # the parent is gone
-                return
-            if job is None:
-                return
-            try:
-                record = run_one(spec, job)
-            except Exception as exc:  # a scenario that changed on disk, or a bug
-                conn.send(("error", _picklable(exc)))
-                return
-            _BOARD.post(IDLE)
-            conn.send(("done", record))
-    finally:
-        release_worker_state()
-
-
-class _Process:
-    """One local worker process, its pipe and its board, and the job it runs."""
-
-    def __init__(self, ctx: Any, spec: WorkerSpec) -> None:
-        self.board = StepBoard.shared(ctx)
-        self.conn, child = ctx.Pipe()
-        self.proc = ctx.Process(
-            target=_worker_main, args=(spec, child, self.board.raw), daemon=True
-        )
-        self.proc.start()
-        child.close()
-        self.ready = False
-        self.job: Job | None = None
-
-    def give(self, job: Job) -> None:
-        self.job = job
-        self.conn.send(job)
-
-    def receive(self) -> tuple[Any, ...] | None:
-        """The next message, or None when the process has died (its pipe closed)."""
-        try:
-            if self.conn.poll():
-                return self.conn.recv()
-        except (EOFError, OSError):
-            pass
-        if self.proc.is_alive():
-            return ("nothing",)
-        return None
-
-    def death(self) -> tuple[str, str, float]:
-        """``(how, where, time)``: the signal or exit code, the block and time noted."""
-        self.proc.join(5)
-        with contextlib.suppress(Exception):
-            self.conn.close()
-        where, _block, t = describe_death(self.board)
-        return describe_exit(self.proc.exitcode), where, t
-
-    def stop(self, wait: float) -> None:
-        with contextlib.suppress(Exception):
-            if self.proc.is_alive():
-                if wait:
-                    self.conn.send(None)
-                else:
-                    self.proc.terminate()  # SIGTERM: it unwinds and frees its blocks
-                self.proc.join(wait or 5)
-            if self.proc.is_alive():
-                self.proc.kill()
-                self.proc.join(5)
-        with contextlib.suppress(Exception):
-            self.conn.close()
-
-
-def _run_pool(
-    spec: WorkerSpec, jobs: list[Job], done: Callable[[RunRecord], None], workers: int
-) -> None:
-    """Run jobs on local worker processes, one job per process at a time."""
-    ctx = pool_context()
-    queue = list(reversed(jobs))  # pop() takes the next
-    deaths: dict[int, int] = {}
-    start_failures = 0
-    procs = [_Process(ctx, spec) for _ in range(min(workers, len(jobs)))]
-    try:
-        while queue or any(p.job is not None for p in procs):
-            for p in procs:
-                if p.ready and p.job is None and queue:
-                    p.give(queue.pop())
-            waiting = {p.conn: p for p in procs} | {p.proc.sentinel: p for p in procs}
-            for p in {waiting[x] for x in multiprocessing.connection.wait(list(waiting))}:
-                msg = p.receive()
-                if msg is not None and msg[0] == "nothing":
-                    continue
-                if msg is not None and msg[0] == "ready":
-                    p.ready, start_failures = True, 0
-                elif msg is not None and msg[0] == "done":
-                    p.job = None
-                    done(msg[1])
-                elif msg is not None and msg[0] == "error":
-                    raise msg[1]
-                else:  # the process died: replace it (if there is work left)
-                    how, where, t = p.death()
-                    job, pid = p.job, p.proc.pid
-                    if job is None:
-                        start_failures += not p.ready
-                        if start_failures >= MAX_START_FAILURES:
-                            raise CampaignError(
-                                f"worker processes die before they can run: the last one "
-                                f"(pid {pid}) {how} {where}; try --workers 1 to see why"
-                            )
-                    else:
-                        deaths[job.index] = deaths.get(job.index, 0) + 1
-                        if deaths[job.index] < CRASH_ATTEMPTS:
-                            queue.append(job)  # again, first, on a fresh process
-                        else:
-                            text = (
-                                f"the worker process (pid {pid}) {how} {where}, in each of "
-                                f"{CRASH_ATTEMPTS} attempts: recorded as crashed "
-                                f"(--resume --rerun-crashed runs it again)"
-                            )
-                            worker = f"{socket.gethostname()}:{pid}"
-                            done(crashed_record(spec, job, text, worker, t))
-                    if queue:
-                        procs[procs.index(p)] = _Process(ctx, spec)
-                    else:
-                        procs.remove(p)
-    except BaseException:
-        # Ctrl-C or an error: stop the workers now, without waiting for the runs in
-        # progress (they are not on disk and will run again on --resume).
-        for p in procs:
-            p.stop(0)
-        raise
-    for p in procs:
-        p.stop(30)
 
 
 def _run_dask(
