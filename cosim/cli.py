@@ -357,7 +357,8 @@ def verify(
     """Verify the requirements of SCENARIO over a Monte Carlo campaign.
 
     --only-run I reruns run I alone with the numbers it has in the whole campaign (the
-    same --seed and --runs: stratified draws depend on the run count).
+    same --seed and --runs: stratified draws depend on the run count; a run of an
+    --until-decided campaign: add --until-decided and its --runs and --max-runs).
 
     --resume keeps the runs recorded as crashed (their worker process died);
     --rerun-crashed runs them again.
@@ -388,15 +389,22 @@ def verify(
         if max_runs is not None and not until_decided:
             raise UserError("--max-runs is the cap of --until-decided: add --until-decided")
         if until_decided:
-            from cosim.verify.sequential import run_until_decided
+            from cosim.verify.sequential import run_alone, run_until_decided
 
-            if only_runs:
-                raise UserError("--only-run and --until-decided cannot be combined")
-            campaign = run_until_decided(
-                scenario, report_dir, runs=runs, max_runs=max_runs, seed=seed, workers=workers,
-                cluster=cluster, fmu_dir=fmu_dir, resume=resume, progress=progress,
-                echo=click.echo,
-            )  # fmt: skip
+            if only_runs and resume:
+                raise UserError("--only-run and --resume cannot be combined")
+            if only_runs:  # a run of an until-decided campaign, with its look batch's draws
+                campaign = run_alone(
+                    scenario, report_dir, list(only_runs), runs=runs, max_runs=max_runs,
+                    seed=seed, workers=workers, cluster=cluster, fmu_dir=fmu_dir,
+                    progress=progress,
+                )  # fmt: skip
+            else:
+                campaign = run_until_decided(
+                    scenario, report_dir, runs=runs, max_runs=max_runs, seed=seed,
+                    workers=workers, cluster=cluster, fmu_dir=fmu_dir, resume=resume,
+                    progress=progress, echo=click.echo,
+                )  # fmt: skip
         else:
             from cosim.verify.sequential import fixed_campaign_folder
 

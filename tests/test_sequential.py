@@ -254,16 +254,23 @@ def test_rms_wrong_verdict_rate_stays_below_alpha_and_naive_exceeds_it(
         assert naive > ALPHA + tol, (what, naive)
 
 
-# ------------------------------------------------------------------ refused designs
-def test_a_stratified_scenario_is_refused_before_any_build(tmp_path) -> None:
-    """Its Latin-hypercube design depends on the total run count (cosim.verify.seeds)."""
-    from cosim.verify.campaign import CampaignError
-    from cosim.verify.sequential import run_until_decided
+# ------------------------------------------------------------- stratified designs
+def test_a_shipped_stratified_scenario_gets_one_hypercube_per_look_batch() -> None:
+    """transfer_alignment.toml (stratified) is no longer refused: the jobs of its looks
+    30, 60, 120, 240 start with those of ``verify --runs 30`` (seeds and draws) and the
+    second batch is a hypercube of its own (tests/test_sequential_strata.py runs one)."""
+    from cosim.verify.campaign import campaign_jobs, prepare
+    from cosim.verify.seeds import design_draws
 
     scenario = Path(__file__).resolve().parent.parent / "scenarios" / "transfer_alignment.toml"
-    with pytest.raises(CampaignError, match=r"stratify = \['imu.accel_bias', 'imu.gyro_bias'\]"):
-        run_until_decided(scenario, tmp_path / "r", workers=1, progress=False)
-    assert not (tmp_path / "r").exists()
+    prep = prepare(scenario)
+    looks = plan_looks(30, 240)
+    jobs = campaign_jobs(prep, 2011, looks.cap, strata=looks.runs)
+    assert jobs[:30] == campaign_jobs(prep, 2011, 30)
+    z = design_draws(looks.runs, 6, 2011)
+    for i in (30, 59, 239):
+        (_, _, za), (_, _, zg) = jobs[i].stratified
+        assert (*za, *zg) == tuple(z[i])
 
 
 def test_resume_refuses_other_looks(tmp_path) -> None:

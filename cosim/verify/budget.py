@@ -669,7 +669,7 @@ def campaign_draws(
     """
     stratified = _stratified(campaign, values)
     indices = [r.index for r in campaign.records]
-    runs, seed = campaign.settings.runs, campaign.settings.seed
+    runs, seed = campaign.settings.design, campaign.settings.seed  # the stratified design
     draws = drawn_parameters(stratified, values, runs, seed, indices)
     origin = {
         k: "[campaign] stratify: the design's draw (campaign seed and run count)" for k in draws

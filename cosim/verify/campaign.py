@@ -105,6 +105,9 @@ class CampaignSettings:
     on_failure : str
         Default ``on_failure`` of the requirements (``"undecided"``, ``"exclude"``,
         ``"fail"``).
+    strata : tuple of int
+        Batch ends of the stratified design (``verify --until-decided``: its looks,
+        :func:`cosim.verify.seeds.design_batches`); empty: one design over ``runs``.
     """
 
     runs: int = 1
@@ -113,6 +116,12 @@ class CampaignSettings:
     stratify: tuple[str, ...] = ()
     history_points: int = 500
     on_failure: str = "undecided"
+    strata: tuple[int, ...] = ()
+
+    @property
+    def design(self) -> int | tuple[int, ...]:
+        """The stratified design of the runs: ``strata``, else ``runs``."""
+        return self.strata or self.runs
 
 
 def parse_campaign(scenario: Scenario) -> CampaignSettings:
@@ -407,12 +416,13 @@ def _check_resume(old: dict[str, Any], new: dict[str, Any], out_dir: Path) -> No
             f"the scenario file changed since the campaign started (sha256 "
             f"{old['scenario']['sha256'][:12]} -> {new['scenario']['sha256'][:12]})"
         )
-    for key in ("seed", "fmu_dir", "seeded_blocks", "randomize", "stratify", "history_points"):
+    keys = ("seed", "fmu_dir", "seeded_blocks", "randomize", "stratify", "strata")
+    for key in (*keys, "history_points"):
         if old.get(key, []) != new.get(key, []):
             raise refuse(f"{key} was {old.get(key)!r}, now {new.get(key)!r}")
     if new["runs"] < old["runs"]:
         raise refuse(f"it has {old['runs']} runs; --runs can add runs, not remove them")
-    if new["runs"] != old["runs"] and new.get("stratify"):
+    if new["runs"] != old["runs"] and new.get("stratify") and not new.get("strata"):
         raise refuse(
             f"its draws are stratified over {old['runs']} runs; --runs cannot change the design"
         )
@@ -432,6 +442,7 @@ def run_campaign(
     progress: bool = True,
     only_runs: Sequence[int] | None = None,
     rerun_crashed: bool = False,
+    strata: Sequence[int] | None = None,
 ) -> Campaign:
     """Run (or resume) a Monte Carlo campaign and judge its requirements.
 
@@ -459,6 +470,10 @@ def run_campaign(
         seeds and stratified draws it has in the whole campaign.
     rerun_crashed : bool
         With ``resume``: run again the runs recorded as crashed (their worker died).
+    strata : sequence of int, optional
+        Batch ends of the stratified design (the looks of ``verify --until-decided``,
+        each batch its own Latin hypercube); ``runs`` may grow up to the last. Default:
+        one design over ``runs``. Ignored without ``[campaign] stratify``.
 
     Returns
     -------
@@ -486,6 +501,10 @@ def run_campaign(
         workers = os.cpu_count() or 1
     if workers < 1:
         raise CampaignError(f"--workers must be >= 1, got {workers}")
+    if strata and prep.stratified:
+        settings.strata = tuple(strata)
+        if settings.runs > strata[-1]:
+            raise CampaignError(f"{settings.runs} runs exceed the stratified design {strata}")
     if only_runs is not None:
         if resume:
             raise CampaignError("--only-run and --resume cannot be combined")
@@ -498,6 +517,8 @@ def run_campaign(
     out = Path(out_dir)
     runs_dir = out / RUNS_DIR
     manifest = _manifest(prep, settings.runs, settings.seed, fmu)
+    if settings.strata:
+        manifest["strata"] = list(settings.strata)
     if only_runs is not None:
         manifest["only_runs"] = sorted(set(only_runs))
     manifest_file = out / MANIFEST
@@ -524,7 +545,7 @@ def run_campaign(
     finished = read_records(runs_dir, settings.runs, crashed=not rerun_crashed) if resume else {}
     wanted = sorted(set(only_runs)) if only_runs is not None else list(range(settings.runs))
     todo = [i for i in wanted if i not in finished]
-    jobs = campaign_jobs(prep, settings.seed, settings.runs, indices=todo)
+    jobs = campaign_jobs(prep, settings.seed, settings.runs, indices=todo, strata=settings.strata)
     randomized = prep.seeded if settings.randomize is None else list(settings.randomize)
     spec = WorkerSpec(
         scenario=str(prep.scenario.path.resolve()),
@@ -606,6 +627,7 @@ def campaign_jobs(
     parameters: Mapping[str, Mapping[str, Any]] | None = None,
     stratify: bool = True,
     tag: str = "",
+    strata: Sequence[int] = (),
 ) -> list[Job]:
     """The jobs of a campaign: each run's seeds and stratified draws, and parameters.
 
@@ -626,6 +648,9 @@ def campaign_jobs(
         draw them from their seeds.
     tag : str
         Label of the jobs (copied into each record).
+    strata : sequence of int
+        Batch ends of the stratified design (:func:`cosim.verify.seeds.design_batches`);
+        empty: one design over ``runs``.
 
     Returns
     -------
@@ -645,7 +670,7 @@ def campaign_jobs(
         if not 0 <= i < runs:
             raise CampaignError(f"{tag or 'campaign'}: run {i} is outside 0 .. {runs - 1}")
         seeds = {b: s for b, s in run_seeds(seed, i, prep.seeded).items() if b in randomized}
-        draws = stratified_draws(prep.stratified, runs, seed, i) if stratify else ()
+        draws = stratified_draws(prep.stratified, strata or runs, seed, i) if stratify else ()
         out.append(Job(int(i), seeds, params, draws, tag))
     return out
 

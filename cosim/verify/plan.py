@@ -24,6 +24,10 @@ many runs; beyond ``cap`` runs the plan says so. The wall time of n runs is the 
 fixed cost (preparing the scenario, starting workers) plus n times its time per run
 divided by the worker count. The same typical campaign judged at the looks of
 ``verify --until-decided`` (:mod:`cosim.verify.sequential`) gives the runs that takes.
+A ``[campaign] stratify`` scenario is planned the same way: its pilot is the fixed
+campaign of ``pilot`` runs, which is also the first look batch of ``verify
+--until-decided --runs pilot`` (one Latin hypercube per look batch), and the typical
+campaigns assume nothing about how the runs were drawn.
 """
 
 from __future__ import annotations
@@ -136,8 +140,7 @@ class Plan:
     requirements : list of RequirementPlan
         In file order.
     looks : Looks or None
-        The looks of ``verify --until-decided --runs pilot`` (None: a stratified
-        scenario, which it refuses).
+        The looks of ``verify --until-decided --runs pilot`` (None: not predicted).
     cap : int
         Most runs looked at.
     """
@@ -386,9 +389,8 @@ def make_plan(
             fmu_dir=fmu_dir, progress=progress,
         )  # fmt: skip
         wall = time.perf_counter() - t0
-    looks = None
-    if not campaign.settings.stratify:
-        looks = plan_looks(pilot, max_runs if max_runs is not None else default_max_runs(pilot))
+    # a stratified pilot is the first look of --until-decided too (its first look batch)
+    looks = plan_looks(pilot, max_runs if max_runs is not None else default_max_runs(pilot))
     plans = []
     for req in campaign.requirements:
         metrics = [r.metrics.get(req.id) for r in campaign.records]
@@ -490,8 +492,6 @@ def format_plan(plan: Plan) -> str:
             f"--until-decided: the look at which `verify --until-decided --runs {plan.pilot} "
             f"--max-runs {plan.looks.cap}` (looks at {looks} runs) decides those runs."
         )
-    else:
-        lines.append("--until-decided: refused for this scenario ([campaign] stratify).")
     lines.append(
         f"wall time: {format_duration(plan.overhead)} + runs / {plan.workers} x "
         f"{plan.run_time:.3g} s on this machine (from the pilot); --until-decided pays the "

@@ -152,7 +152,7 @@ def ols(y: FloatArray, X: FloatArray, names: tuple[str, ...], units: tuple[str, 
 def drawn_parameters(
     stratified: list[Stratified],
     values: dict[str, dict[str, Any]],
-    runs: int,
+    runs: int | tuple[int, ...],
     seed: int,
     indices: list[int],
 ) -> dict[str, FloatArray]:
@@ -168,8 +168,9 @@ def drawn_parameters(
         ``[campaign] stratify``, resolved.
     values : dict
         The scenario's parameters with defaults, ``{block: {name: SI value}}``.
-    runs : int
-        Runs of the campaign (the design's size).
+    runs : int or tuple of int
+        The campaign's stratified design (``Campaign.settings.design``: its run count,
+        or the look batches of ``--until-decided``).
     seed : int
         Campaign seed.
     indices : list of int
@@ -215,7 +216,7 @@ def recorded_draws(
     records: list[Any],
     skip: set[str],
     stratified: list[Stratified] | None = None,
-    runs: int = 0,
+    runs: int | tuple[int, ...] = 0,
     seed: int = 0,
 ) -> dict[str, FloatArray]:
     """Each run's own draw of the sensor errors, read from the sensor blocks' truth outputs.
@@ -237,8 +238,10 @@ def recorded_draws(
         Draw keys (``"block.name"``) known otherwise (stratified): left out.
     stratified : list of Stratified, optional
         The campaign's stratified parameters (applied to the block as in the run).
-    runs, seed : int
-        The campaign's run count and seed (for the stratified draws).
+    runs : int or tuple of int
+        The campaign's stratified design (its run count, or its look batches).
+    seed : int
+        The campaign seed (for the stratified draws).
 
     Returns
     -------

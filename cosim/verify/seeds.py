@@ -15,9 +15,20 @@ so a run's seeds do not depend on the number of runs either.
 Stratified draws (``[campaign] stratify``): a parameter ``block.name`` with a sibling
 ``block.name_sigma`` (the turn-on sigma the block would draw ``name`` with from its own
 seed) is drawn by the campaign instead: run ``i`` takes ``name = name_file + name_sigma *
-z[i]`` and ``name_sigma = 0``, where ``z`` is one Latin-hypercube design of standard
-normal draws over all stratified components (:func:`latin_hypercube_normal`, stream 0 of
-the campaign seed, one column per vector component in the order of the list).
+z[i]`` and ``name_sigma = 0``, where ``z`` is a Latin-hypercube design of standard
+normal draws over all stratified components (:func:`latin_hypercube_normal`, one column
+per vector component in the order of the list).
+
+The design (:func:`design_batches`) is a list of batch ends ``n_1 < n_2 < ... < n_K``:
+batch ``j`` (0-based), runs ``n_{j-1} .. n_j - 1`` (``n_{-1} = 0``), is its own Latin
+hypercube of ``n_j - n_{j-1}`` runs from stream ``j`` of the campaign seed. A fixed
+campaign of ``N`` runs is the one batch ``(N,)``: stream 0 over all its runs. A campaign
+of ``verify --until-decided`` has one batch per look (its planned looks, fixed before the
+first run), so its first look is exactly the fixed campaign of ``n_1`` runs and each later
+batch is a hypercube of its own, independent of the others (another stream). Every run is
+marginally ``N(0, I)`` in both; within a batch the runs are not independent (one per
+stratum), between batches they are. What that does to the confidence bounds, which assume
+independent runs: :mod:`cosim.verify.sequential`.
 """
 
 from __future__ import annotations
@@ -34,6 +45,13 @@ SEED_RULE = (
     "seeds of run i = SeedSequence(campaign seed).spawn(runs)[i]"
     ".generate_state(len(seeded_blocks), uint32) >> 1, in seeded_blocks order; "
     "blocks not randomized keep the seed of the scenario file"
+)
+#: The stratified design in one line, recorded with every stratified campaign.
+STRATIFY_RULE = (
+    "design = batch ends n_1 < ... < n_K (a fixed campaign: (runs,); --until-decided: its "
+    "looks); batch j, runs n_{j-1} .. n_j - 1, is latin_hypercube_normal(n_j - n_{j-1}, "
+    "components, campaign seed, stream=j); run i takes name = file value + name_sigma * "
+    "z_i and name_sigma = 0"
 )
 #: Suffix of the parameter that holds a stratified parameter's sigma.
 SIGMA_SUFFIX = "_sigma"
@@ -145,8 +163,95 @@ class Stratified:
         return f"{self.name}{SIGMA_SUFFIX}"
 
 
+def design_batches(design: int | Sequence[int]) -> tuple[int, ...]:
+    """The batch ends of a stratified design (the module's rule).
+
+    Parameters
+    ----------
+    design : int or sequence of int
+        ``N``: one Latin hypercube over runs 0 .. N - 1 (a fixed campaign of ``N`` runs);
+        increasing run counts ``n_1 < ... < n_K``: one hypercube per batch (the looks of
+        ``verify --until-decided``).
+
+    Returns
+    -------
+    tuple of int
+        ``(n_1, ..., n_K)``; ``(N,)`` for an int.
+
+    Raises
+    ------
+    ValueError
+        Not increasing, or a count below 1.
+    """
+    ends = (int(design),) if isinstance(design, int | np.integer) else tuple(int(n) for n in design)
+    if not ends or ends[0] < 1 or any(b <= a for a, b in zip(ends, ends[1:], strict=False)):
+        raise ValueError(f"a stratified design is increasing run counts >= 1, got {design!r}")
+    return ends
+
+
+def batch_of(index: int, design: int | Sequence[int]) -> tuple[int, int, int]:
+    """The batch of a design that holds run ``index``.
+
+    Parameters
+    ----------
+    index : int
+        Run number, 0-based, below the design's last batch end.
+    design : int or sequence of int
+        As :func:`design_batches`.
+
+    Returns
+    -------
+    (int, int, int)
+        ``(j, start, size)``: batch number (the stream of its hypercube), its first run
+        and its number of runs.
+
+    Raises
+    ------
+    ValueError
+        ``index`` outside ``0 .. n_K - 1``.
+    """
+    ends = design_batches(design)
+    i = int(index)
+    if not 0 <= i < ends[-1]:
+        raise ValueError(f"run {index} is outside the stratified design of {ends[-1]} runs")
+    j = int(np.searchsorted(ends, i, side="right"))
+    start = ends[j - 1] if j > 0 else 0
+    return j, start, ends[j] - start
+
+
+def design_draws(design: int | Sequence[int], dims: int, campaign_seed: int) -> np.ndarray:
+    """All standard normal draws of a stratified design, run by run.
+
+    Parameters
+    ----------
+    design : int or sequence of int
+        As :func:`design_batches`.
+    dims : int
+        Stratified components per run, >= 1.
+    campaign_seed : int
+        Campaign seed.
+
+    Returns
+    -------
+    ndarray, shape (n_K, dims)
+        Rows ``n_{j-1} .. n_j - 1``: ``latin_hypercube_normal(n_j - n_{j-1}, dims,
+        campaign_seed, stream=j)`` (dimensionless).
+    """
+    ends = design_batches(design)
+    starts = (0, *ends[:-1])
+    return np.vstack(
+        [
+            latin_hypercube_normal(b - a, dims, campaign_seed, stream=j)
+            for j, (a, b) in enumerate(zip(starts, ends, strict=True))
+        ]
+    )
+
+
 def stratified_draws(
-    stratify: Sequence[Stratified], runs: int, campaign_seed: int, index: int
+    stratify: Sequence[Stratified],
+    runs: int | Sequence[int],
+    campaign_seed: int,
+    index: int,
 ) -> tuple[tuple[str, str, tuple[float, ...]], ...]:
     """The standard normal draws of run ``index`` for each stratified parameter.
 
@@ -154,12 +259,14 @@ def stratified_draws(
     ----------
     stratify : sequence of Stratified
         The campaign's stratified parameters, in the order of ``[campaign] stratify``.
-    runs : int
-        Runs of the design (the campaign's run count: the strata per component).
+    runs : int or sequence of int
+        The design (:func:`design_batches`): a fixed campaign's run count (one hypercube,
+        the strata per component), or the batch ends of ``verify --until-decided`` (one
+        hypercube per look).
     campaign_seed : int
         Campaign seed.
     index : int
-        Run number, below ``runs``.
+        Run number, below the design's last batch end.
 
     Returns
     -------
@@ -170,14 +277,13 @@ def stratified_draws(
     Raises
     ------
     ValueError
-        ``index`` outside ``0 .. runs - 1``.
+        ``index`` outside the design, or a design that is not increasing.
     """
     if not stratify:
         return ()
-    if not 0 <= int(index) < int(runs):
-        raise ValueError(f"run {index} is outside the stratified design of {runs} runs")
+    j, start, size = batch_of(index, runs)
     dims = sum(s.size for s in stratify)
-    z = latin_hypercube_normal(int(runs), dims, int(campaign_seed), stream=0)[int(index)]
+    z = latin_hypercube_normal(size, dims, int(campaign_seed), stream=j)[int(index) - start]
     out, k = [], 0
     for s in stratify:
         out.append((s.block, s.name, tuple(float(v) for v in z[k : k + s.size])))

@@ -37,11 +37,48 @@ for fixed campaigns, the guarantee is per requirement.
 
 The runs are those of a fixed campaign: run i has the seeds of run i of any campaign of
 the same seed (:mod:`cosim.verify.seeds`), so the first n runs of an until-decided
-campaign are ``verify --runs n``. A ``[campaign] stratify`` design depends on the total
-number of runs, which a sequential campaign does not know in advance: such a scenario is
-refused. Each look calls :func:`cosim.verify.campaign.run_campaign` with ``resume``, so
-``--resume`` and ``--cluster`` work as for fixed campaigns; the design is kept in
-``sequential.json`` in the report folder and ``--resume`` refuses to change it.
+campaign are ``verify --runs n``. Each look calls
+:func:`cosim.verify.campaign.run_campaign` with ``resume``, so ``--resume`` and
+``--cluster`` work as for fixed campaigns; the design is kept in ``sequential.json`` in
+the report folder and ``--resume`` refuses to change it.
+
+**Stratified scenarios** (``[campaign] stratify``). A Latin hypercube is drawn over a
+known number of runs, and a sequential campaign does not know how many it will make. Its
+design is therefore one hypercube per look batch (:func:`cosim.verify.seeds.design_batches`
+with the looks): batch j, runs n_{j-1} .. n_j - 1, is a hypercube of n_j - n_{j-1} runs
+from stream j of the campaign seed. The first batch is the design of ``verify --runs
+n_1`` (stream 0 over n_1 runs), so the first look is that fixed campaign, run for run, as
+for an unstratified scenario; the later looks are not the fixed campaign of n_j runs (that
+would be one hypercube over n_j). The batch ends are in ``sequential.json`` and
+``campaign.json`` (``strata``), so ``--resume`` continues with the same draws, and
+:func:`run_alone` (``verify --until-decided --runs n_1 --max-runs N --only-run I``) reruns
+run I with the draws it has in the campaign.
+
+*What the design does to the bounds.* Every bound of :mod:`cosim.verify.statistics`
+assumes independent runs. Within a batch the runs are not independent: each stratified
+component has exactly one run in each of the batch's probability strata. Each run is
+still exactly N(0, 1) per component (its stratum is uniform over the strata, its place
+inside uniform), and the batches are independent of each other and of the stopping (a
+batch's draws follow from the seed alone). Every statistic judged is a mean over the runs
+of some function g of the run, or is decided by one (the mean square under ``rms``, the
+pass fraction under ``pass_rate``, the count of runs below a level under ``p<q>`` and
+``max``). Over a hypercube of n runs the variance of such a mean is, for large n, that
+of independent runs less the variance of g's additive part in the stratified draws,
+divided by n (Stein 1987); it is at most that of independent runs when g is monotone in
+each draw (McKay, Beckman and Conover 1979), and never more than sigma^2 / (n - 1) for
+any g (Owen, *Monte Carlo theory, methods and examples*, Proposition 10.4): a hypercube
+is never worse than independent runs with one run fewer. Stratification is used where a
+metric grows with a drawn turn-on error (seed 001's bias tilts the level), i.e. where g
+has a large additive part: there the statistic scatters less than the bounds assume, so
+the bounds are conservative (they cover more often than stated, and are wider than they
+need be). They are not exact: the distribution of the statistic is no longer exactly
+chi-square or binomial, and for a metric with no additive part in the draws its
+variance can exceed the independent one by the factor n / (n - 1) (3 % for a 30-run
+batch). The sequential rule needs nothing beyond this: each look's bound is as valid as
+a fixed stratified campaign's, and the union bound over the looks holds as before.
+Simulated (tests/test_sequential_strata.py): with the metrics' spread dominated by a
+stratified draw, the rule's wrong-verdict rate on batch designs is at most that on
+independent runs.
 """
 
 from __future__ import annotations
@@ -74,6 +111,7 @@ from cosim.verify.requirements import (
     RunMetric,
     Verdict,
 )
+from cosim.verify.seeds import STRATIFY_RULE
 from cosim.verify.statistics import judge
 
 __all__ = [
@@ -88,6 +126,7 @@ __all__ = [
     "judge_sequentially",
     "plan_looks",
     "requirement_confidence",
+    "run_alone",
     "run_until_decided",
     "runs_taken",
 ]
@@ -335,10 +374,22 @@ def first_decisions(codes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ------------------------------------------------------------------------ the campaign
+def _stratified_design(looks: Looks, stratify: Sequence[str]) -> dict[str, Any] | None:
+    """The stratified design of the campaign (one hypercube per look batch), or None."""
+    if not stratify:
+        return None
+    return {"parameters": list(stratify), "batches": list(looks.runs), "rule": STRATIFY_RULE}
+
+
 def _design(
-    looks: Looks, reqs: Sequence[Requirement], seed: int, first: int, max_runs: int
+    looks: Looks,
+    reqs: Sequence[Requirement],
+    seed: int,
+    first: int,
+    max_runs: int,
+    stratify: Sequence[str] = (),
 ) -> dict[str, Any]:
-    return {
+    out = {
         "format": FORMAT,
         "rule": RULE,
         "first": first,
@@ -353,6 +404,10 @@ def _design(
             for r in reqs
         },
     }
+    strata = _stratified_design(looks, stratify)
+    if strata is not None:
+        out["stratified"] = strata
+    return out
 
 
 def _read_design(out: Path) -> dict[str, Any]:
@@ -406,7 +461,8 @@ def run_until_decided(
     Parameters
     ----------
     scenario : str or Path
-        Scenario file with ``[[requirements]]``; without ``[campaign] stratify``.
+        Scenario file with ``[[requirements]]`` (a ``[campaign] stratify`` design is drawn
+        per look batch, see the module docstring).
     out_dir : str or Path
         Report folder (as :func:`cosim.verify.campaign.run_campaign`), with
         ``sequential.json``.
@@ -439,20 +495,13 @@ def run_until_decided(
     Raises
     ------
     ScenarioError, FmuError, CampaignError
-        Bad input, a stratified scenario, or a changed design on resume.
+        Bad input, or a changed design on resume.
     CampaignInterrupted
         On Ctrl-C; the finished runs are on disk (continue with ``resume``).
     """
     out = Path(out_dir)
-    sc = load_scenario(scenario)
-    stratify = parse_campaign(sc).stratify
-    if stratify:  # refused before anything is built
-        raise CampaignError(
-            f"{sc.path}: --until-decided cannot add runs to a stratified design ([campaign] "
-            f"stratify = {list(stratify)} draws over a fixed run count); run a fixed "
-            f"campaign with --runs, or remove stratify"
-        )
     prep = prepare(scenario, fmu_dir)
+    stratify = prep.settings.stratify
     old = _read_design(out) if resume else None
     if seed is None:
         seed = int(old["seed"]) if old is not None else prep.settings.seed
@@ -461,14 +510,14 @@ def run_until_decided(
     if max_runs is None:
         max_runs = int(old["max_runs"]) if old is not None else default_max_runs(runs)
     looks = plan_looks(runs, max_runs)
-    design = _design(looks, prep.requirements, seed, runs, max_runs)
+    design = _design(looks, prep.requirements, seed, runs, max_runs, stratify)
     if old is not None:
-        for key in ("looks", "seed", "requirements"):
-            if old.get(key) != design[key]:
+        for key in ("looks", "seed", "requirements", "stratified"):
+            if old.get(key) != design.get(key):
                 raise CampaignError(
                     f"{out / SEQUENTIAL_FILE}: cannot resume: {key} was {old.get(key)!r}, now "
-                    f"{design[key]!r} (the looks are fixed before the first run); run without "
-                    f"--resume to start over"
+                    f"{design.get(key)!r} (the looks are fixed before the first run); run "
+                    f"without --resume to start over"
                 )
         started = int(json.loads((out / MANIFEST).read_text())["runs"])
     else:
@@ -498,6 +547,7 @@ def run_until_decided(
                 fmu_dir=fmu_dir,
                 resume=resume or j > 0,
                 progress=progress,
+                strata=looks.runs,
             )
             ran += int(campaign.execution["runs_this_session"])
             records = campaign.records
@@ -515,7 +565,7 @@ def run_until_decided(
     if campaign is None:
         raise CampaignError(f"{out}: the campaign on disk does not match its design; start over")
     campaign.execution["resumed"] = resume
-    return _finish(campaign, reqs, final, looks, ran)
+    return _finish(campaign, reqs, final, looks, ran, _stratified_design(looks, stratify))
 
 
 def _overall_claim(claim: str, look: float, overall: float) -> str:
@@ -539,6 +589,7 @@ def _finish(
     final: dict[str, SequentialVerdict],
     looks: Looks,
     ran: int,
+    stratified: dict[str, Any] | None = None,
 ) -> Campaign:
     """The campaign with the sequential verdicts and the design in ``execution``."""
     verdicts = []
@@ -585,9 +636,74 @@ def _finish(
             "alpha_per_look": alphas,
             "requirements": taken,
             "stopped_at": len(campaign.records),
+            "stratified": stratified,
         },
     )
     return campaign
+
+
+def run_alone(
+    scenario: str | Path,
+    out_dir: str | Path,
+    only_runs: Sequence[int],
+    *,
+    runs: int | None = None,
+    max_runs: int | None = None,
+    seed: int | None = None,
+    workers: int | None = None,
+    cluster: str | None = None,
+    fmu_dir: str | Path | None = None,
+    progress: bool = True,
+) -> Campaign:
+    """Run some runs of an until-decided campaign alone, with the numbers they have in it.
+
+    ``verify --until-decided --only-run I``: the looks are planned from ``runs`` and
+    ``max_runs`` as by :func:`run_until_decided` (give the campaign's), so run I gets the
+    seeds and, in a stratified scenario, the draws of its look batch. The runs are judged
+    as by ``verify --only-run`` (a fixed campaign of those runs, at full confidence).
+
+    Parameters
+    ----------
+    scenario : str or Path
+        Scenario file with ``[[requirements]]``.
+    out_dir : str or Path
+        Report folder (a new campaign of these runs; an until-decided one there is
+        replaced).
+    only_runs : sequence of int
+        The runs, each below the cap.
+    runs : int, optional
+        Runs of the first look (default ``[campaign] runs``).
+    max_runs : int, optional
+        The cap (default 16 times the first look).
+    seed : int, optional
+        Campaign seed (default ``[campaign] seed``).
+    workers : int, optional
+        Local worker processes.
+    cluster : str, optional
+        Address of a Dask scheduler.
+    fmu_dir : str or Path, optional
+        Run built-in models from the FMUs in this folder.
+    progress : bool
+        Progress bar on stderr.
+
+    Returns
+    -------
+    Campaign
+        As :func:`cosim.verify.campaign.run_campaign` with ``only_runs``.
+
+    Raises
+    ------
+    ScenarioError, FmuError, CampaignError
+        Bad input, or a run beyond the cap.
+    """
+    settings = parse_campaign(load_scenario(scenario))
+    first = int(runs) if runs is not None else settings.runs
+    looks = plan_looks(first, max_runs if max_runs is not None else default_max_runs(first))
+    fixed_campaign_folder(out_dir, resume=False)
+    return run_campaign(
+        scenario, out_dir, runs=looks.cap, seed=seed, workers=workers, cluster=cluster,
+        fmu_dir=fmu_dir, progress=progress, only_runs=list(only_runs), strata=looks.runs,
+    )  # fmt: skip
 
 
 def runs_taken(sequential: dict[str, Any]) -> list[str]:
