@@ -688,6 +688,9 @@ def so3_right_jacobian(phi: ArrayLike) -> np.ndarray:
 def rotvec_to_dcm_and_jacobian(phi: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """:func:`rotvec_to_dcm` and :func:`so3_right_jacobian` of the same vectors, together.
 
+    Elementwise arithmetic in a fixed order (``[phi x]^2`` written out, no matrix
+    products), which the compiled lever arm (``models/native/kernels.c``) repeats.
+
     Parameters
     ----------
     phi : array_like, shape (..., 3)
@@ -701,7 +704,9 @@ def rotvec_to_dcm_and_jacobian(phi: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
         Right Jacobian ``J_r(phi)``.
     """
     phi = np.asarray(phi, dtype=float)
-    a = np.sqrt((phi * phi).sum(axis=-1))
+    x, y, z = phi[..., 0], phi[..., 1], phi[..., 2]
+    xx, yy, zz = x * x, y * y, z * z
+    a = np.sqrt(xx + yy + zz)
     small = a < 1e-3
     a2 = a * a
     a4 = a2 * a2
@@ -712,9 +717,22 @@ def rotvec_to_dcm_and_jacobian(phi: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     else:
         safe = np.where(small, 1.0, a)
         s1 = np.where(small, 1.0 - a2 / 6.0 + a4 / 120.0, np.sin(safe) / safe)
-        s2 = np.where(small, 0.5 - a2 / 24.0 + a4 / 720.0, (1.0 - np.cos(safe)) / safe**2)
-        s3 = np.where(small, 1.0 / 6.0 - a2 / 120.0 + a4 / 5040.0, (safe - np.sin(safe)) / safe**3)
+        s2 = np.where(small, 0.5 - a2 / 24.0 + a4 / 720.0, (1.0 - np.cos(safe)) / (safe * safe))
+        s3 = np.where(
+            small,
+            1.0 / 6.0 - a2 / 120.0 + a4 / 5040.0,
+            (safe - np.sin(safe)) / (safe * safe * safe),
+        )
     k = skew(phi)
-    k2 = k @ k
+    k2 = np.empty(phi.shape[:-1] + (3, 3))  # [phi x]^2
+    k2[..., 0, 0] = -zz - yy
+    k2[..., 0, 1] = y * x
+    k2[..., 0, 2] = z * x
+    k2[..., 1, 0] = x * y
+    k2[..., 1, 1] = -zz - xx
+    k2[..., 1, 2] = z * y
+    k2[..., 2, 0] = x * z
+    k2[..., 2, 1] = y * z
+    k2[..., 2, 2] = -yy - xx
     s1, s2, s3 = s1[..., None, None], s2[..., None, None], s3[..., None, None]
     return _EYE3 + s1 * k + s2 * k2, _EYE3 - s2 * k + s3 * k2

@@ -31,6 +31,10 @@ of seed 001 eq. (11) thus appears as ``R_0 theta_ddot`` in the slave's specific
 force at the step end, and its integral over the step is exactly
 ``R_0 (theta'(t+h) - theta'(t)) = R_0 dtheta_dot_flex`` (see :mod:`models.lever_arm`).
 
+Compiled step: with :func:`models.native.library`, the per-step update below is one call
+of ``deck_flexure_step`` (``models/native/kernels.c``, the same arithmetic; the normals are
+still drawn by numpy, :data:`AHEAD_STEPS` steps at a time).
+
 Outputs at the step end: ``theta`` [rad], ``theta_dot`` [rad/s], ``theta_ddot``
 [rad/s2], ``eta`` [rad/s2] (step mean); increments over the step:
 ``dtheta_flex = theta(t+h) - theta(t)`` [rad] (the integral of ``theta_dot``) and
@@ -45,6 +49,7 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
+from models import native
 from models.block import Block, output, parameter, same_step
 from models.constants import ARCMIN
 
@@ -152,12 +157,21 @@ class DeckFlexure(Block):
         self._pos = 0
         self._x0 = np.zeros((3, 3))  # [0, theta, theta'] per axis (the integral restarts)
         z = self._rng.standard_normal((2, 3))
-        self.theta = sig * z[0]
-        self.theta_dot = self._beta * sig * z[1]
-        self.eta = np.zeros(3)
-        self.theta_ddot = -2.0 * self._beta * self.theta_dot - self._beta**2 * self.theta
-        self.dtheta_flex = np.zeros(3)
-        self.dtheta_dot_flex = np.zeros(3)
+        # outputs written in place: they stay the block's buffer views (models.block)
+        self.theta[:] = sig * z[0]
+        self.theta_dot[:] = self._beta * sig * z[1]
+        self.eta[:] = 0.0
+        self.theta_ddot[:] = -2.0 * self._beta * self.theta_dot - self._beta**2 * self.theta
+        self.dtheta_flex[:] = 0.0
+        self.dtheta_dot_flex[:] = 0.0
+        self._lib = native.library()
+        if self._lib is not None:
+            self._st = np.concatenate([self.theta, self.theta_dot])  # the state the step needs
+            self._fixed = np.concatenate([self._two_beta, self._beta2])
+            self._native_step = self._lib.deck_flexure_step
+            self._io = native.Buffers(self, (), NATIVE_OUTPUTS)
+            self._st_ptr = native.pointer(self._st)
+            self._fixed_ptr = native.pointer(self._fixed)
 
     def _model(self, h: float) -> tuple[np.ndarray, np.ndarray]:
         if self._cache is None or not same_step(h, self._cache[0]):
@@ -168,10 +182,30 @@ class DeckFlexure(Block):
                 phis.append(phi)
                 roots.append(noise_factor(qd))
             self._cache = (h, np.array(phis), np.array(roots))
+            self._cache_ptrs = (native.pointer(self._cache[1]), native.pointer(self._cache[2]))
         return self._cache[1], self._cache[2]
 
     def step(self, t: float, h: float) -> None:
         phi, root = self._model(h)
+        if self._lib is not None:
+            if self._pos >= len(self._noise):
+                self._noise = self._rng.standard_normal((AHEAD_STEPS, 3, 3))
+                self._pos = 0
+                self._noise_ptr = native.pointer(self._noise)
+            fixed = self._fixed_ptr
+            io = self._io
+            self._native_step(
+                *self._cache_ptrs,
+                self._noise_ptr + 72 * self._pos,  # 9 doubles per step
+                fixed,
+                fixed + 24,  # beta^2 after 2 beta
+                self._st_ptr,
+                io.output_pointer(),
+                h,
+            )
+            self._pos += 1
+            io.publish()
+            return
         x0 = self._x0  # (axis, 3): column 0 stays 0
         x0[:, 1] = self.theta
         x0[:, 2] = self.theta_dot
@@ -193,6 +227,9 @@ class DeckFlexure(Block):
         self.dtheta_flex = d_theta
         self.dtheta_dot_flex = d_theta_dot
 
+
+#: The compiled step's outputs, in its layout (declaration order).
+NATIVE_OUTPUTS = ("theta", "theta_dot", "theta_ddot", "eta", "dtheta_flex", "dtheta_dot_flex")
 
 #: Steps of random numbers drawn ahead (one call instead of one per step).
 AHEAD_STEPS = 64

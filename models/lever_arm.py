@@ -54,6 +54,11 @@ slave's own local level differs by ``|r|/R`` ~ 2e-6 rad).
 Slave velocity (w.r.t. earth, master NED axes; ``omega_eb_b = omega - C_n_b omega_ie_n``)::
 
     v_n_s = v_n + C_b_n (omega_eb_b x r_p + r_p')
+
+Compiled step: when :func:`models.native.library` gives the compiled kernels, a step is
+one call of ``lever_arm_step`` (``models/native/kernels.c``: the paths, the node loop and
+the step end above, node by node); otherwise the numpy code below. Both give the same
+outputs to rounding (1e-12, ``tests/test_native.py``).
 """
 
 from __future__ import annotations
@@ -63,6 +68,7 @@ import math
 
 import numpy as np
 
+from models import native
 from models.block import Block, input_, output, parameter
 from models.constants import DEG, OMEGA_IE
 from models.conventions import (
@@ -141,19 +147,92 @@ def slave_kinematics(
         Slave rate w.r.t. inertial [rad/s] and specific force [m/s2], slave axes.
     c_d_b : ndarray, shape (m, 3, 3), or None for a rigid deck
     """
-    r = r0 + th @ r0_t
+    r = r0 + vecmat(th, r0_t)
     # omega x (omega x r) = omega (omega . r) - r |omega|^2
-    wr = (w * r).sum(axis=-1, keepdims=True)
-    ww = (w * w).sum(axis=-1, keepdims=True)
+    wr = dot(w, r)[..., None]
+    ww = dot(w, w)[..., None]
     f_p = f + cross(wd, r) + w * wr - r * ww
     if not flexure:
-        return w @ c_s_d, f_p @ c_s_d, None
-    f_p = f_p + 2.0 * cross(w, thd @ r0_t) + thdd @ r0_t
+        return vecmat(w, c_s_d), vecmat(f_p, c_s_d), None
+    f_p = f_p + 2.0 * cross(w, vecmat(thd, r0_t)) + vecmat(thdd, r0_t)
     c_d_b, j_r = rotvec_to_dcm_and_jacobian(th)
-    # [w, f_p] @ C_d_b in one batched product: rows (m, 2, 3)
-    wf = np.stack([w, f_p], axis=1) @ c_d_b
-    w_d = wf[:, 0, :] + (j_r @ thd[:, :, None])[:, :, 0]
-    return w_d @ c_s_d, wf[:, 1, :] @ c_s_d, c_d_b
+    w_d = vecmat(w, c_d_b) + matvec(j_r, thd)
+    return vecmat(w_d, c_s_d), vecmat(vecmat(f_p, c_d_b), c_s_d), c_d_b
+
+
+def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a . b`` along the last axis, summed in component order (``a0 b0 + a1 b1 + a2 b2``).
+
+    Parameters
+    ----------
+    a, b : ndarray, shape (..., 3)
+        Vectors in one frame.
+
+    Returns
+    -------
+    ndarray, shape (...)
+    """
+    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+
+
+def vecmat(v: np.ndarray, m: np.ndarray) -> np.ndarray:
+    """Row vectors times matrices, ``v @ m``, summed in index order (no BLAS, no FMA).
+
+    The elementwise order is the compiled kernels' (``models/native/kernels.c``), so the
+    numpy and compiled lever arms give the same numbers bit for bit.
+
+    Parameters
+    ----------
+    v : ndarray, shape (..., 3)
+        Row vectors.
+    m : ndarray, shape (3, 3) or (..., 3, 3)
+        Matrices (one for all vectors, or one per vector).
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        ``sum_i v_i m_ij``; with ``v`` of shape (3, 3) and ``m`` (3, 3), the product of
+        two matrices.
+    """
+    return v[..., 0:1] * m[..., 0, :] + v[..., 1:2] * m[..., 1, :] + v[..., 2:3] * m[..., 2, :]
+
+
+def matvec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Matrices times column vectors, ``m @ v``, summed in index order (see :func:`vecmat`).
+
+    Parameters
+    ----------
+    m : ndarray, shape (3, 3) or (..., 3, 3)
+        Matrices.
+    v : ndarray, shape (..., 3)
+        Vectors.
+
+    Returns
+    -------
+    ndarray, shape (..., 3)
+        ``sum_j m_ij v_j``.
+    """
+    return m[..., :, 0] * v[..., 0:1] + m[..., :, 1] * v[..., 1:2] + m[..., :, 2] * v[..., 2:3]
+
+
+def combine(basis: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``basis @ rows`` summed column by column in order (see :func:`vecmat`).
+
+    Parameters
+    ----------
+    basis : ndarray, shape (m, k)
+        Basis functions at the nodes.
+    rows : ndarray, shape (k, 3)
+        Coefficient rows.
+
+    Returns
+    -------
+    ndarray, shape (m, 3)
+    """
+    out = basis[:, 0:1] * rows[0]
+    for j in range(1, len(rows)):
+        out = out + basis[:, j : j + 1] * rows[j]
+    return out
 
 
 class LeverArm(Block):
@@ -198,6 +277,10 @@ class LeverArm(Block):
             flexure=bool(self.flexure),
         )
         self._nodes: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, int]] = {}
+        self._lib = native.library()
+        if self._lib is not None:
+            self._initialize_native()
+            return
         self._w_path = StepPath()
         self._w_path.reset(self.start_time, self.omega_ib_b, self.omega_dot_b)
         self._f_path = StepPath()
@@ -205,6 +288,33 @@ class LeverArm(Block):
         self._publish_end()
         self.dtheta_s = np.zeros(3)
         self.dv_s = np.zeros(3)
+
+    def _initialize_native(self) -> None:
+        """Buffers and parameters of the compiled step (layouts: ``models/native/kernels.c``)."""
+        self._par = np.concatenate(
+            [
+                self._r0,
+                self._R0.ravel(),
+                self._c_s_d.ravel(),
+                [float(self.flexure), StepPath().rel_tol, OMEGA_IE, float(self.dt_truth)],
+            ]
+        )
+        self._st = np.zeros(14)  # both paths start at the start time from the inputs
+        self._st[0:2] = (1.0, self.start_time)
+        self._st[2:5] = np.asarray(self.omega_ib_b, dtype=float)
+        self._st[5] = 1.0
+        self._st[6:9] = np.asarray(self.omega_dot_b, dtype=float)
+        self._st[9:11] = (1.0, self.start_time)
+        self._st[11:14] = np.asarray(self.f_b, dtype=float)
+        self._io = native.Buffers(self, NATIVE_INPUTS, NATIVE_OUTPUTS)
+        self._par_ptr = native.pointer(self._par)
+        self._st_ptr = native.pointer(self._st)
+        self._native_step = self._lib.lever_arm_step
+        io = self._io
+        self._lib.lever_arm_publish(
+            self._par_ptr, io.input_pointer(), float(self.lat), io.output_pointer()
+        )
+        io.publish()
 
     def _flex_inputs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         if not self.flexure:
@@ -240,76 +350,74 @@ class LeverArm(Block):
         self.omega_is_s = w_s.copy()
         self.f_s = f_s.copy()
         c_b_n = euler_to_dcm_3(self.rpy)
-        c_s_b = self._c_s_d if c_d_b is None else c_d_b @ self._c_s_d
-        self.rpy_s = dcm_to_euler_3(c_b_n @ c_s_b)
-        self.r_p = self._r0 + self._R0 @ th
+        c_s_b = self._c_s_d if c_d_b is None else vecmat(c_d_b, self._c_s_d)
+        self.rpy_s = dcm_to_euler_3(vecmat(c_b_n, c_s_b))
+        self.r_p = self._r0 + matvec(self._R0, th)
         lat = float(self.lat)
         w_ie = np.array([OMEGA_IE * math.cos(lat), 0.0, -OMEGA_IE * math.sin(lat)])
-        w_eb = np.asarray(self.omega_ib_b, dtype=float) - w_ie @ c_b_n
-        self.v_n_s = np.asarray(self.v_n, dtype=float) + c_b_n @ (
-            cross(w_eb, self.r_p) + self._R0 @ thd
+        w_eb = np.asarray(self.omega_ib_b, dtype=float) - vecmat(w_ie, c_b_n)
+        self.v_n_s = np.asarray(self.v_n, dtype=float) + matvec(
+            c_b_n, cross(w_eb, self.r_p) + matvec(self._R0, thd)
         )
 
-    def _step_basis(self, h: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
-        """Simpson nodes and weights of the step, and one basis for every path at the nodes.
+    def _step_basis(self, h: float) -> tuple[np.ndarray, np.ndarray, tuple[np.ndarray, ...]]:
+        """Simpson nodes and weights of the step, and the paths' bases at the nodes (cached).
 
         Returns
         -------
         s, wts : ndarray, shape (m,)
             Nodes in [0, 1] and weights (sum 1).
-        basis : ndarray, shape (6 m, 12)
-            Block diagonal: rows ``[w; h w'; f; theta; h theta'; h^2 theta'']`` from the
-            coefficient rows ``[quartic of w (5); quadratic of f (3); Hermite of theta (4)]``.
-        m : int
-            Number of nodes.
+        bases : tuple of ndarray
+            ``quartic, quartic_d`` (m, 5), ``quadratic`` (m, 3) and the Hermite ``b0, b1,
+            b2`` (m, 4) (:func:`models.step_paths.path_basis`, :func:`hermite_basis`).
         """
         n = substeps(h, self.dt_truth)
         entry = self._nodes.get(n)
         if entry is None:
             s, wts = simpson_nodes(n)
-            m = len(s)
             quartic, quartic_d, quadratic, _ = path_basis(s)
-            b0, b1, b2 = hermite_basis(s)
-            basis = np.zeros((6 * m, 12))
-            basis[0:m, 0:5] = quartic
-            basis[m : 2 * m, 0:5] = quartic_d
-            basis[2 * m : 3 * m, 5:8] = quadratic
-            basis[3 * m : 4 * m, 8:12] = b0
-            basis[4 * m : 5 * m, 8:12] = b1
-            basis[5 * m : 6 * m, 8:12] = b2
-            entry = self._nodes[n] = (s, wts, basis, m)
+            entry = self._nodes[n] = (s, wts, (quartic, quartic_d, quadratic, *hermite_basis(s)))
         return entry
 
     def step(self, t: float, h: float) -> None:
-        s, wts, basis, m = self._step_basis(h)
+        if self._lib is not None:
+            io = self._io
+            self._native_step(
+                self._par_ptr,
+                self._st_ptr,
+                io.input_pointer(),
+                float(self.lat),
+                io.output_pointer(),
+                t,
+                h,
+            )
+            io.publish()
+            return
+        s, wts, (quartic, quartic_d, quadratic, b0, b1, b2) = self._step_basis(h)
         cw = self._w_path.coefficients(t, h, self.omega_ib_b, self.dtheta_b, self.omega_dot_b)
         cf = self._f_path.coefficients(t, h, self.f_b, self.dv_b)
+        if cw is None:  # no valid start: memoryless quadratic
+            w, wd = step_quadratic(self.omega_ib_b, self.omega_dot_b, self.dtheta_b, h, s)
+        else:
+            w, wd = combine(quartic, cw), combine(quartic_d, cw) / h
+        if cf is None:
+            f, _ = step_linear(self.f_b, self.dv_b, h, s)
+        else:
+            f = combine(quadratic, cf)
         if self.flexure:
             th1 = np.asarray(self.theta, dtype=float)
             thd1 = np.asarray(self.theta_dot, dtype=float)
             th0 = th1 - np.asarray(self.dtheta_flex, dtype=float)
             thd0 = thd1 - np.asarray(self.dtheta_dot_flex, dtype=float)
             cth = np.array([th0, thd0 * h, th1, thd1 * h])
-        else:
-            cth = _ZERO[4]
-        coef = np.concatenate([_ZERO[5] if cw is None else cw, _ZERO[3] if cf is None else cf, cth])
-        paths = basis @ coef  # every path at every node: one product
-        if cw is None:  # no valid start: memoryless quadratic
-            w, wd = step_quadratic(self.omega_ib_b, self.omega_dot_b, self.dtheta_b, h, s)
-        else:
-            w, wd = paths[0:m], paths[m : 2 * m] / h
-        if cf is None:
-            f, _ = step_linear(self.f_b, self.dv_b, h, s)
-        else:
-            f = paths[2 * m : 3 * m]
-        if self.flexure:
-            th = paths[3 * m : 4 * m]
-            thd = paths[4 * m : 5 * m] / h
-            thdd = paths[5 * m :] / (h * h)
+            th = combine(b0, cth)
+            thd = combine(b1, cth) / h
+            thdd = combine(b2, cth) / (h * h)
         else:
             th = thd = thdd = np.zeros_like(w)
         w_s, f_s, c_d_b = self._slave(w, wd, f, th, thd, thdd)
-        sums = h * (wts @ np.hstack([w_s, f_s]))
+        # Simpson sums in node order (cumsum is sequential, as the compiled step)
+        sums = h * np.cumsum(wts[:, None] * np.hstack([w_s, f_s]), axis=0)[-1]
         self.dtheta_s = sums[0:3]
         self.dv_s = sums[3:6]
         # Step end: the path's end node equals the inputs except theta'', which is the
@@ -319,9 +427,23 @@ class LeverArm(Block):
             self._finish(w_s[-1], f_end, np.zeros(3), np.zeros(3), None)
             return
         d_acc = np.asarray(self.theta_ddot, dtype=float) - thdd[-1]
-        f_end = f_end + ((self._R0 @ d_acc) @ c_d_b[-1]) @ self._c_s_d
+        f_end = f_end + vecmat(vecmat(matvec(self._R0, d_acc), c_d_b[-1]), self._c_s_d)
         self._finish(w_s[-1], f_end, th1, thd1, c_d_b[-1])
 
 
-#: Zero coefficient rows standing in for a path computed otherwise (fallback or rigid deck).
-_ZERO = {k: np.zeros((k, 3)) for k in (3, 4, 5)}
+#: The compiled step's vector inputs and outputs, in its layout (declaration order).
+NATIVE_INPUTS = (
+    "omega_ib_b",
+    "omega_dot_b",
+    "f_b",
+    "dtheta_b",
+    "dv_b",
+    "rpy",
+    "v_n",
+    "theta",
+    "theta_dot",
+    "theta_ddot",
+    "dtheta_flex",
+    "dtheta_dot_flex",
+)
+NATIVE_OUTPUTS = ("omega_is_s", "f_s", "dtheta_s", "dv_s", "rpy_s", "v_n_s", "r_p")

@@ -38,6 +38,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from models import native
 from models.block import STEP_RTOL, Block, parameter, same_step
 from models.constants import DEG
 from models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
@@ -87,8 +88,9 @@ class ShipMotion(Block):
         self.truth_evaluations = 0
         truth, rpy, v_n = self._truth(np.array([self.start_time]))
         self._publish(truth, rpy, v_n, 0)
-        self.dtheta_b = np.zeros(3)
-        self.dv_b = np.zeros(3)
+        self.dtheta_b[:] = 0.0
+        self.dv_b[:] = 0.0
+        self._io = native.Buffers(self, (), ROW_OUTPUTS)
 
     def _truth(self, tt: np.ndarray) -> tuple[ImuTruth, np.ndarray, np.ndarray]:
         """Closed-form trajectory and inertial truth at the instants ``tt`` (shape (m,)).
@@ -121,15 +123,16 @@ class ShipMotion(Block):
 
     def _publish(self, truth: ImuTruth, rpy: np.ndarray, v_n: np.ndarray, i: int) -> None:
         """Set the state outputs from row ``i`` of the evaluated truth."""
-        self.rpy = np.array(rpy[i])
+        # written in place: the vectors stay the block's buffer views (models.block)
+        self.rpy[:] = rpy[i]
         self.rpy[2] = math.remainder(self.rpy[2], 2.0 * math.pi)
-        self.v_n = np.array(v_n[i])
+        self.v_n[:] = v_n[i]
         self.lat = float(truth.lat[i])
         self.lon = float(truth.lon[i])
         self.h = float(truth.h[i])
-        self.omega_ib_b = truth.omega_ib_b[i].copy()
-        self.omega_dot_b = truth.omega_dot_b[i].copy()
-        self.f_b = truth.f_b[i].copy()
+        self.omega_ib_b[:] = truth.omega_ib_b[i]
+        self.omega_dot_b[:] = truth.omega_dot_b[i]
+        self.f_b[:] = truth.f_b[i]
 
     def step(self, t: float, h: float) -> None:
         ahead = self._ahead
@@ -137,9 +140,19 @@ class ShipMotion(Block):
             ahead = self._look_ahead(t, h)
         k = ahead.pos
         ahead.pos += 1
-        self.dtheta_b = ahead.dtheta[k].copy()
-        self.dv_b = ahead.dv[k].copy()
-        self._publish(ahead.truth, ahead.rpy, ahead.v_n, (k + 1) * ahead.m - 1)
+        row = ahead.rows[k]  # this step's outputs, packed once per look-ahead (see _Ahead)
+        self.lat, self.lon, self.h = ahead.position[k]
+        out = self._io.output_array()
+        if out is not None:  # the outputs are one buffer in this order: one copy
+            np.copyto(out, row)
+            return
+        self.rpy = row[0:3]
+        self.v_n = row[3:6]
+        self.omega_ib_b = row[6:9]
+        self.omega_dot_b = row[9:12]
+        self.f_b = row[12:15]
+        self.dtheta_b = row[15:18]
+        self.dv_b = row[18:21]
 
     def _look_ahead(self, t: float, h: float) -> _Ahead:
         """Evaluate the steps from ``t`` on, predicting the master's next step starts.
@@ -170,18 +183,32 @@ class ShipMotion(Block):
         steps = (grid[1:] - starts)[:, None]  # h_n = t_{n+1} - t_n, as the master passes it
         truth, rpy, v_n = self._truth((starts[:, None] + steps * s).ravel())
         m = len(s)
+        ends = np.arange(1, size + 1) * m - 1  # the node at each step's end
+        rows = np.concatenate(
+            [
+                rpy[ends],
+                v_n[ends],
+                truth.omega_ib_b[ends],
+                truth.omega_dot_b[ends],
+                truth.f_b[ends],
+                steps * np.matmul(w, truth.omega_ib_b.reshape(size, m, 3)),
+                steps * np.matmul(w, truth.f_b.reshape(size, m, 3)),
+            ],
+            axis=1,
+        )
+        rows[:, 2] = [math.remainder(y, 2.0 * math.pi) for y in rows[:, 2].tolist()]
+        position = np.stack([truth.lat[ends], truth.lon[ends], truth.h[ends]], axis=1).tolist()
         self._ahead = _Ahead(
-            steps=steps[:, 0],
-            starts=starts,
-            m=m,
-            truth=truth,
-            rpy=rpy,
-            v_n=v_n,
-            dtheta=steps * np.matmul(w, truth.omega_ib_b.reshape(size, m, 3)),
-            dv=steps * np.matmul(w, truth.f_b.reshape(size, m, 3)),
+            steps=steps[:, 0].tolist(),
+            starts=starts.tolist(),
+            rows=rows,
+            position=[tuple(p) for p in position],
         )
         return self._ahead
 
+
+#: The vector outputs in the order of a row of :class:`_Ahead` (their declaration order).
+ROW_OUTPUTS = ("rpy", "v_n", "omega_ib_b", "omega_dot_b", "f_b", "dtheta_b", "dv_b")
 
 #: Most steps of a moored ship evaluated in one vectorised call.
 AHEAD_STEPS = 64
@@ -189,17 +216,15 @@ AHEAD_STEPS = 64
 
 @dataclass
 class _Ahead:
-    """Truth of the next steps, evaluated at once (rows are node ``j`` of step ``k`` at
-    ``k m + j``; step ``k`` from ``starts[k]`` to ``starts[k] + h``)."""
+    """Outputs of the next steps, evaluated at once: step ``k`` runs from ``starts[k]`` for
+    ``steps[k]``; ``rows[k]`` holds its step-end ``rpy`` (yaw wrapped), ``v_n``,
+    ``omega_ib_b``, ``omega_dot_b``, ``f_b`` and its ``dtheta_b``, ``dv_b`` (21 values),
+    ``position[k]`` its ``(lat, lon, h)``."""
 
-    steps: np.ndarray
-    starts: np.ndarray
-    m: int
-    truth: ImuTruth
-    rpy: np.ndarray
-    v_n: np.ndarray
-    dtheta: np.ndarray
-    dv: np.ndarray
+    steps: list[float]
+    starts: list[float]
+    rows: np.ndarray
+    position: list[tuple[float, float, float]]
     pos: int = 0
 
     def serves(self, t: float, h: float) -> bool:
@@ -213,5 +238,5 @@ class _Ahead:
         k = self.pos
         if k >= len(self.starts):
             return False
-        h_k = float(self.steps[k])
-        return abs(float(self.starts[k]) - t) <= STEP_RTOL * h_k and same_step(h, h_k)
+        h_k = self.steps[k]
+        return abs(self.starts[k] - t) <= STEP_RTOL * h_k and same_step(h, h_k)

@@ -55,7 +55,9 @@ initial Gauss-Markov state 3), then one (2, 5, 3) block per step (per triad: whi
 Gauss-Markov 2, random walk 2). The draws do not depend on which errors are enabled.
 The step blocks are drawn :data:`AHEAD_STEPS` at a time (the same numbers in the same
 order) and the input-free terms computed for those steps at once, with the same
-arithmetic as step by step.
+arithmetic as step by step. With :func:`models.native.library`, the per-step part (errors
+applied to the inputs, quantisation, outputs) is one call of ``strapdown_imu_step``
+(``models/native/kernels.c``, the same arithmetic).
 """
 
 from __future__ import annotations
@@ -67,6 +69,7 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
+from models import native
 from models.block import Block, input_, output, parameter, same_step
 from models.constants import ARCSEC, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MICRO_G, PPM
 
@@ -416,10 +419,16 @@ class StrapdownImu(Block):
         self._ahead: dict[str, Any] | None = None
         self.noise_batches = 0  # batches of noise terms computed (one per AHEAD_STEPS steps)
         bias = self._const + self._gm + self._rw
-        self.gyro_bias_b = bias[0].copy()
-        self.accel_bias_b = bias[1].copy()
+        # outputs written in place: they stay the block's buffer views (models.block)
+        self.gyro_bias_b[:] = bias[0]
+        self.accel_bias_b[:] = bias[1]
         for name in ("dtheta_meas_b", "dv_meas_b", "omega_meas_b", "f_meas_b"):
-            setattr(self, name, np.zeros(3))
+            getattr(self, name)[:] = 0.0
+        self._lib = native.library()
+        if self._lib is not None:
+            self._native_step = self._lib.strapdown_imu_step
+            self._io = native.Buffers(self, ("dtheta_b", "dv_b"), NATIVE_OUTPUTS)
+            self._ptr = tuple(native.pointer(a) for a in (self._err, self._lsb, self._resid))
 
     def _coefficients(self, h: float) -> None:
         """Cache the per-step noise coefficients (recomputed only when ``h`` changes)."""
@@ -467,14 +476,16 @@ class StrapdownImu(Block):
         )  # rw_0, rw_0 + a_0, (rw_0 + a_0) + a_1, ...
         gm_int = gm[:, 1:2] * gm_state + gm[:, 3:4] * z[:, :, 1] + gm[:, 4:5] * z[:, :, 2]
         rw_int = h * rw_walk[:-1] + rw[:, 1:2] * z[:, :, 3] + rw[:, 2:3] * z[:, :, 4]
-        return {
+        ahead = {
             "h": h,
             "start": self._pos,
-            "bias_int": self._const * h + gm_int + rw_int,
-            "white": self._white_h[:, None] * z[:, :, 0],
+            "bias_int": np.ascontiguousarray(self._const * h + gm_int + rw_int),
+            "white": np.ascontiguousarray(self._white_h[:, None] * z[:, :, 0]),
             "gm_next": gm[:, 0:1] * gm_state + gm[:, 2:3] * z[:, :, 1],
             "rw_next": rw_walk[1:],
         }
+        ahead["ptrs"] = (native.pointer(ahead["bias_int"]), native.pointer(ahead["white"]))
+        return ahead
 
     def step(self, t: float, h: float) -> None:
         self._coefficients(h)
@@ -483,9 +494,18 @@ class StrapdownImu(Block):
             ahead = self._ahead = self._noise_ahead(h)
         k = self._pos - ahead["start"]
         self._pos += 1
-        bias_int = ahead["bias_int"][k]
         self._gm = ahead["gm_next"][k]
         self._rw = ahead["rw_next"][k]
+        if self._lib is not None:
+            err, lsb, resid = self._ptr
+            bias, white = ahead["ptrs"]
+            io = self._io
+            d_true = io.input_pointer()
+            out = io.output_pointer()
+            self._native_step(d_true, err, bias + 48 * k, white + 48 * k, lsb, resid, out, h)
+            io.publish()
+            return
+        bias_int = ahead["bias_int"][k]
         d_true = np.array([self.dtheta_b, self.dv_b], dtype=float)
         y = d_true + np.einsum("sij,sj->si", self._err, d_true) + bias_int + ahead["white"][k]
         for s in (0, 1):
@@ -501,6 +521,16 @@ class StrapdownImu(Block):
         self.gyro_bias_b = bias_int[0] / h
         self.accel_bias_b = bias_int[1] / h
 
+
+#: The compiled step's outputs, in its layout (declaration order).
+NATIVE_OUTPUTS = (
+    "dtheta_meas_b",
+    "dv_meas_b",
+    "omega_meas_b",
+    "f_meas_b",
+    "gyro_bias_b",
+    "accel_bias_b",
+)
 
 #: Steps of random numbers (and of the input-free bias and noise terms) drawn ahead.
 AHEAD_STEPS = 64

@@ -1,0 +1,338 @@
+"""Compiled step kernels of the models: a small C library built with gcc, loaded with ctypes.
+
+The hot loops of :class:`models.lever_arm.LeverArm`, :class:`models.deck_flexure.DeckFlexure`
+and :class:`models.strapdown_imu.StrapdownImu` have a C twin in ``kernels.c`` (the same
+formulas in the same order, one call per step, no warm-up). The numpy code stays, as the
+fallback and the readable statement of each model; both give the same outputs to rounding
+(``tests/test_native.py`` checks 1e-12, in-process and inside an FMU).
+
+Where the library lives. :func:`build` compiles ``kernels.c`` into
+``models/native/build/kernels-<sha256 of the source, 16 hex>.so`` (``make setup`` and
+``make fmus`` do it; a missing library is also built at first use when the folder is
+writable and the package is not an FMU's copy). The name carries the source's hash, so a
+changed source is never served by a stale library. ``make fmus`` packs the library with the
+``models`` package into every FMU's resources, so an FMU loads it from its own copy (no
+compiler needed where the FMU runs).
+
+Which path runs (:func:`library`, read when a block initialises):
+
+* ``INS_COSIM_NATIVE=0`` in the environment: numpy, always;
+* otherwise the compiled kernels when the library loads, else numpy (no compiler, a build
+  error, an FMU host on which the library does not load): same numbers to 1e-12.
+
+:func:`status` says which, and why.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+from collections.abc import Callable
+from operator import attrgetter, is_
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+SOURCE = HERE / "kernels.c"
+BUILD_DIR = HERE / "build"
+#: Environment variable that switches the compiled kernels off when set to ``0``.
+ENV = "INS_COSIM_NATIVE"
+#: Compiler flags: IEEE arithmetic (no -ffast-math, no contraction into FMA).
+CFLAGS = ("-O2", "-std=c99", "-shared", "-fPIC", "-ffp-contract=off")
+
+_state: dict[str, object] = {}
+
+
+def library_path() -> Path:
+    """Where the library of the current ``kernels.c`` is (or would be) built.
+
+    Returns
+    -------
+    Path
+        ``models/native/build/kernels-<hash>.so``, the hash being the first 16 hex
+        digits of the SHA-256 of ``kernels.c``.
+    """
+    digest = hashlib.sha256(SOURCE.read_bytes()).hexdigest()[:16]
+    return BUILD_DIR / f"kernels-{digest}.so"
+
+
+def _in_fmu() -> bool:
+    """True when this package is the copy inside an unpacked FMU's resources."""
+    resources = HERE.parents[1]
+    return resources.name == "resources" and (resources.parent / "modelDescription.xml").is_file()
+
+
+def _compiler() -> str | None:
+    for candidate in (os.environ.get("CC"), "gcc", "cc"):
+        if candidate and shutil.which(candidate):
+            return candidate
+    return None
+
+
+def build(force: bool = False) -> Path:
+    """Compile ``kernels.c`` into :func:`library_path` (atomically; old builds removed).
+
+    Parameters
+    ----------
+    force : bool
+        Rebuild even when the library of the current source exists.
+
+    Returns
+    -------
+    Path
+        The shared library.
+
+    Raises
+    ------
+    RuntimeError
+        No C compiler (``$CC``, ``gcc`` or ``cc``), or the compilation failed (its
+        messages included).
+    """
+    target = library_path()
+    if target.is_file() and not force:
+        return target
+    cc = _compiler()
+    if cc is None:
+        raise RuntimeError(
+            "no C compiler for models/native/kernels.c: expected $CC, 'gcc' or 'cc' on the "
+            "PATH (install gcc); the models run their numpy code meanwhile"
+        )
+    BUILD_DIR.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".kernels-", suffix=".so", dir=BUILD_DIR)
+    os.close(fd)
+    try:
+        proc = subprocess.run(
+            [cc, *CFLAGS, "-o", tmp, str(SOURCE), "-lm"], capture_output=True, text=True
+        )
+        if proc.returncode != 0:
+            raise RuntimeError(
+                f"compiling models/native/kernels.c failed ({cc}):\n{proc.stderr.strip()}"
+            )
+        os.replace(tmp, target)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    for old in BUILD_DIR.glob("kernels-*.so"):
+        if old != target:
+            old.unlink(missing_ok=True)
+    return target
+
+
+def _declare(lib: ctypes.CDLL) -> None:
+    p, d, i = ctypes.c_void_p, ctypes.c_double, ctypes.c_int
+    signatures = {
+        "lever_arm_step": ([p, p, p, d, p, d, d], i),
+        "lever_arm_publish": ([p, p, d, p], None),
+        "deck_flexure_step": ([p, p, p, p, p, p, p, d], None),
+        "strapdown_imu_step": ([p, p, p, p, p, p, p, d], None),
+    }
+    for name, (args, res) in signatures.items():
+        fn = getattr(lib, name)
+        fn.argtypes = args
+        fn.restype = res
+
+
+def _load() -> ctypes.CDLL | None:
+    """Load (building first when allowed) the library once per process; None when it fails."""
+    if "lib" in _state:
+        return _state["lib"]  # type: ignore[return-value]
+    lib = None
+    try:
+        path = library_path()
+        if not path.is_file():
+            if _in_fmu():
+                raise RuntimeError(f"{path.name} is not in this FMU's copy of models/")
+            path = build()
+        lib = ctypes.CDLL(str(path))
+        _declare(lib)
+        _state["why"] = f"compiled kernels ({path.name})"
+    except (OSError, RuntimeError, AttributeError) as exc:
+        lib = None
+        _state["why"] = f"numpy (compiled kernels unavailable: {exc})"
+    _state["lib"] = lib
+    return lib
+
+
+def library() -> ctypes.CDLL | None:
+    """The compiled kernels for a block being initialised, or None for the numpy path.
+
+    Returns
+    -------
+    ctypes.CDLL or None
+        None when ``INS_COSIM_NATIVE=0`` or the library is unavailable (see :func:`status`).
+    """
+    if os.environ.get(ENV, "1").strip() == "0":
+        return None
+    return _load()
+
+
+def status() -> str:
+    """Which path the blocks initialised now take, and why.
+
+    Returns
+    -------
+    str
+        ``"compiled kernels (kernels-<hash>.so)"``, or ``"numpy (...)"`` with the reason.
+    """
+    if os.environ.get(ENV, "1").strip() == "0":
+        return f"numpy ({ENV}=0)"
+    _load()
+    return str(_state["why"])
+
+
+def pointer(array: object) -> int:
+    """Address of a numpy array's data, for the kernels' ``double *`` arguments.
+
+    Parameters
+    ----------
+    array : ndarray
+        A C-contiguous float64 array that outlives the calls using the address.
+
+    Returns
+    -------
+    int
+        The address of its first element.
+    """
+    return array.ctypes.data  # type: ignore[attr-defined]
+
+
+def span(block: object, names: tuple[str, ...]) -> np.ndarray | None:
+    """The float64 array whose consecutive parts the attributes ``names`` are, in order.
+
+    :class:`models.block.Block` keeps its vector inputs (and outputs) as views of one
+    buffer; when the named attributes are such views, back to back in the given order, a
+    kernel can read (write) them all through one pointer.
+
+    Parameters
+    ----------
+    block : object
+        The model instance.
+    names : tuple of str
+        Attribute names of 1-D float64 vectors.
+
+    Returns
+    -------
+    ndarray or None
+        A view spanning exactly those attributes; None when they are not one span.
+    """
+    arrays = [getattr(block, n) for n in names]
+    for a in arrays:
+        if type(a) is not np.ndarray or a.dtype != np.float64 or a.ndim != 1:
+            return None
+        if not a.flags.c_contiguous or a.base is None or a.base is not arrays[0].base:
+            return None
+    base = arrays[0].base
+    if type(base) is not np.ndarray or base.dtype != np.float64 or base.ndim != 1:
+        return None
+    if not base.flags.c_contiguous:
+        return None
+    start = arrays[0].ctypes.data
+    pos = start
+    for a in arrays:
+        if a.ctypes.data != pos:
+            return None
+        pos += a.nbytes
+    first = (start - base.ctypes.data) // base.itemsize
+    return base[first : first + (pos - start) // base.itemsize]
+
+
+def _getter(names: tuple[str, ...]) -> Callable[[object], tuple] | None:
+    """``obj -> tuple of the attributes`` (a tuple also for one name); None for none."""
+    if not names:
+        return None
+    if len(names) == 1:
+        one = attrgetter(names[0])
+        return lambda obj: (one(obj),)
+    return attrgetter(*names)
+
+
+class Buffers:
+    """Where a compiled step reads its vector inputs and writes its vector outputs.
+
+    Straight from the block's own buffers when the inputs (outputs) are one span of
+    views (:func:`span`) and still the same objects; otherwise through buffers of its
+    own: the inputs gathered before the step, the outputs assigned as fresh arrays
+    after it (:meth:`publish`). The values are the same either way.
+
+    Parameters
+    ----------
+    block : object
+        The model instance (its attributes are read at each step).
+    inputs, outputs : tuple of str
+        Vector attributes in the kernel's layout order (may be empty).
+    """
+
+    def __init__(self, block: object, inputs: tuple[str, ...], outputs: tuple[str, ...]) -> None:
+        self.block = block
+        self.inputs = inputs
+        self.outputs = outputs
+        self._in_get = _getter(inputs)
+        self._out_get = _getter(outputs)
+        in_sizes = [len(getattr(block, n)) for n in inputs]
+        out_sizes = [len(getattr(block, n)) for n in outputs]
+        self._in_own = np.zeros(sum(in_sizes))
+        self._out_own = np.zeros(sum(out_sizes))
+        self._in_own_ptr = pointer(self._in_own)
+        self._out_own_ptr = pointer(self._out_own)
+        edges = np.cumsum([0, *out_sizes]).tolist()
+        self._out_slices = list(zip(outputs, edges[:-1], edges[1:], strict=True))
+        self._in_views = self._in_get(block) if self._in_get else ()
+        self._out_views = self._out_get(block) if self._out_get else ()
+        in_span = span(block, inputs) if self._in_get else None
+        out_span = span(block, outputs) if self._out_get else None
+        self._in_ptr = None if in_span is None else pointer(in_span)
+        self._out_ptr = None if out_span is None else pointer(out_span)
+        self._out_span = out_span
+        self._own_out = True
+
+    def output_array(self) -> np.ndarray | None:
+        """The block's output span (:func:`span`) while its views are in place, else None.
+
+        Returns
+        -------
+        ndarray or None
+            Write a step's outputs into it in place (numpy code without a kernel); None:
+            assign the attributes instead.
+        """
+        if self._out_span is not None and all(map(is_, self._out_get(self.block), self._out_views)):
+            return self._out_span
+        return None
+
+    def input_pointer(self) -> int:
+        """Address of this step's inputs (the block's buffer, or gathered into our own).
+
+        Returns
+        -------
+        int
+        """
+        vals = self._in_get(self.block)
+        if self._in_ptr is not None and all(map(is_, vals, self._in_views)):
+            return self._in_ptr
+        np.concatenate(vals, out=self._in_own)
+        return self._in_own_ptr
+
+    def output_pointer(self) -> int:
+        """Address where this step's outputs go; call :meth:`publish` after the kernel.
+
+        Returns
+        -------
+        int
+        """
+        if self._out_ptr is not None and all(map(is_, self._out_get(self.block), self._out_views)):
+            self._own_out = False
+            return self._out_ptr
+        self._own_out = True
+        return self._out_own_ptr
+
+    def publish(self) -> None:
+        """Set the output attributes when the kernel wrote into our own buffer."""
+        if self._own_out:
+            out = self._out_own.copy()
+            block = self.block
+            for name, lo, hi in self._out_slices:
+                setattr(block, name, out[lo:hi])
