@@ -10,7 +10,13 @@ terminate``; and ``reset``. Two hosts implement it:
 - :class:`FmuHost` runs an FMU file through fmpy (FMI 2.0 co-simulation; FMI 3.0
   co-simulation where fmpy supports it), ours or a vendor's.
 
-Values cross the protocol as lists of scalars addressed by value reference.
+Values cross the protocol addressed by value reference: as lists of scalars
+(:meth:`BlockHost.get_real`, :meth:`BlockHost.set_real`), and, for the master's
+per-step exchange, as float64 arrays bound once per run
+(:meth:`BlockHost.real_reader`, :meth:`BlockHost.real_writer`): an in-process block
+fills its part of the master's value table and takes its inputs from one array
+without lists; an FMU gets one ``fmi2GetReal`` / ``fmi2SetReal`` call per block and
+step with value-reference and value arrays made once.
 """
 
 from __future__ import annotations
@@ -21,9 +27,11 @@ import functools
 import hashlib
 import importlib
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
+
+import numpy as np
 
 import models  # noqa: F401  (imported before any FMU, so FMUs of ours reuse this copy)
 from cosim.errors import FmuError
@@ -141,6 +149,47 @@ class BlockHost(abc.ABC):
         values : list of float
             One value per reference, in each variable's declared unit.
         """
+
+    def real_reader(self, vrs: list[int], out: np.ndarray) -> Callable[[], None]:
+        """A function that writes the current values of ``vrs`` into ``out`` (per step).
+
+        Parameters
+        ----------
+        vrs : list of int
+            Value references of Real variables.
+        out : ndarray
+            float64, shape (len(vrs),), C-contiguous: where the values go (in each
+            variable's declared unit), kept by the returned function.
+
+        Returns
+        -------
+        callable
+            ``read()``; valid until :meth:`reset` (the master binds it at every run).
+            This default reads :meth:`get_real`; the hosts read arrays directly.
+        """
+        get = self.get_real
+
+        def read() -> None:
+            out[:] = get(vrs)
+
+        return read
+
+    def real_writer(self, vrs: list[int]) -> Callable[[np.ndarray], None]:
+        """A function that sets ``vrs`` from a float64 array (per step).
+
+        Parameters
+        ----------
+        vrs : list of int
+            Value references of Real variables.
+
+        Returns
+        -------
+        callable
+            ``write(x)``, ``x`` float64 of shape (len(vrs),) in each variable's declared
+            unit; valid until :meth:`reset`. This default calls :meth:`set_real`.
+        """
+        set_ = self.set_real
+        return lambda x: set_(vrs, x.tolist())
 
     def get_values(self, vtype: str, vrs: list[int]) -> list[Any]:
         """Current values of variables of one type (what the recorder reads).
@@ -286,6 +335,12 @@ class InProcessHost(BlockHost):
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
         self.instance.set_real(vrs, values)
+
+    def real_reader(self, vrs: list[int], out: np.ndarray) -> Callable[[], None]:
+        return self.instance.real_reader(vrs, out)
+
+    def real_writer(self, vrs: list[int]) -> Callable[[np.ndarray], None]:
+        return self.instance.real_writer(vrs)
 
     def reset(self) -> None:
         self._new_instance()
@@ -586,6 +641,35 @@ class FmuHost(BlockHost):
 
     def set_real(self, vrs: list[int], values: list[float]) -> None:
         self._set["Real"](vrs, values)
+
+    def _real_call(self, name: str, vrs: list[int], values: np.ndarray) -> Callable[[], Any]:
+        """fmpy's checked ``fmi2GetReal``/``fmi2SetReal`` (FMI 3: ``Float64``) on arrays made
+        once: the value references as a C array, the values aliasing ``values``."""
+        fmu = self.fmu
+        n = len(vrs)
+        refs = (ctypes.c_uint32 * n)(*vrs)
+        buffer = (ctypes.c_double * n).from_buffer(values) if n else (ctypes.c_double * 0)()
+        if self.fmi_version == "2.0":
+            fn = getattr(fmu, f"fmi2{name}Real")
+            return functools.partial(fn, fmu.component, refs, n, buffer)
+        fn = getattr(fmu, f"fmi3{name}Float64")
+        return functools.partial(fn, fmu.component, refs, n, buffer, n)
+
+    def real_reader(self, vrs: list[int], out: np.ndarray) -> Callable[[], None]:
+        if not out.flags.c_contiguous or out.dtype != np.float64:
+            return super().real_reader(vrs, out)
+        return self._real_call("Get", vrs, out)
+
+    def real_writer(self, vrs: list[int]) -> Callable[[np.ndarray], None]:
+        values = np.zeros(len(vrs))
+        call = self._real_call("Set", vrs, values)
+        copyto = np.copyto
+
+        def write(x: np.ndarray) -> None:
+            copyto(values, x)
+            call()
+
+        return write
 
     def reset(self) -> None:
         self._call("fmi2Reset" if self.fmi_version == "2.0" else "fmi3Reset", self.fmu.reset)

@@ -38,7 +38,7 @@ import numpy as np
 from cosim.blocks import BlockCallError, BlockHost, BlockTerminated
 from cosim.errors import ScenarioError, SimulationError
 from cosim.results import RunResult
-from cosim.variables import REAL
+from cosim.variables import REAL, Variable
 
 GAUSS_SEIDEL = "gauss-seidel"
 JACOBI = "jacobi"
@@ -328,20 +328,20 @@ class Master:
     def _build_tables(self) -> None:
         sys_ = self.system
         slots: dict[tuple[str, str], int] = {}
-        self._outputs: dict[str, tuple[list[int], np.ndarray, list[str]]] = {}
+        self._outputs: dict[str, tuple[list[int], slice, list[Variable]]] = {}
         start_values: list[float] = []
         for name in self.order:
             host = sys_.blocks[name]
             outs = [v for v in host.by_causality("output") if v.type == REAL]
-            idx = []
+            first = len(start_values)
             for v in outs:
                 slots[(name, v.name)] = len(start_values)
-                idx.append(len(start_values))
                 # An output without a start value (FMI initial="calculated") has no value
                 # before initialisation; where one is read then (Jacobi initialisation, a
                 # delayed loop connection) the master passes 0.0.
                 start_values.append(float(v.start) if v.start is not None else 0.0)
-            self._outputs[name] = ([v.vr for v in outs], np.array(idx, dtype=int), outs)
+            # each block's outputs are one contiguous part of the value table
+            self._outputs[name] = ([v.vr for v in outs], slice(first, len(start_values)), outs)
         self._start_values = np.array(start_values)
         self._inputs: dict[str, tuple[list[int], np.ndarray, np.ndarray]] = {}
         into: dict[str, list[Connection]] = {name: [] for name in self.order}
@@ -349,7 +349,9 @@ class Master:
             into[c.dst_block].append(c)
         for name in self.order:
             host = sys_.blocks[name]
-            conns = into[name]
+            # in value-reference order (vector elements in order: few slice copies); the
+            # sort is stable, so an input connected twice keeps its connections' order
+            conns = sorted(into[name], key=lambda c: host.variables[c.dst_var].vr)
             self._inputs[name] = (
                 [host.variables[c.dst_var].vr for c in conns],
                 np.array([slots[(c.src_block, c.src_var)] for c in conns], dtype=int),
@@ -477,27 +479,50 @@ class Master:
             err.result = result("failed", str(err))
             return err
 
-        # Per block, in stepping order: host, rate, input (vrs, source slots, factors or
-        # None when every factor is 1: x * 1.0 == x), output (vrs, slots, variables).
+        # Per block, in stepping order: name, host, rate, its inputs (source slots, factors
+        # or None when every factor is 1: x * 1.0 == x; the host's array writer) and its
+        # outputs (the host's reader into the block's part of the value table, that part,
+        # zeros for the finiteness check, the variables). Readers and writers are bound
+        # here, for this run (a reset makes new in-process instances).
         plan = []
         for name, k in zip(self.order, rates, strict=True):
+            host = sys_.blocks[name]
             in_vrs, in_idx, factor = self._inputs[name]
-            out_vrs, out_idx, outs = self._outputs[name]
+            out_vrs, part, outs = self._outputs[name]
             unit = bool(np.all(factor == 1.0))
+            out = values[part]
             plan.append(
-                (name, sys_.blocks[name], k, in_vrs, in_idx, None if unit else factor)
-                + (out_vrs, out_idx, outs)
+                (
+                    name,
+                    host,
+                    k,
+                    in_idx,
+                    None if unit else factor,
+                    host.real_writer(in_vrs) if in_vrs else None,
+                    host.real_reader(out_vrs, out) if out_vrs else None,
+                    out,
+                    np.zeros(len(out_vrs)),
+                    outs,
+                )
             )
         # the recording as a plain (rows, columns) float view of the structured array
         table = data.view(np.float64).reshape(n_rows, len(names))
         record_idx, real_cols, typed = self._record_idx, self._real_cols, self._typed
+        # columns and value slots as slices where they are consecutive (the usual case:
+        # every output recorded, in order): one slice copy per row
+        real_cols_at: slice | np.ndarray = _as_slice(real_cols)
+        record_from: np.ndarray | None = None
+        record_part = _as_slice(record_idx)
+        if isinstance(record_part, slice):
+            record_from = values[record_part]
         strings: dict[str, list[str]] = {
             n: [] for _h, vtype, _v, _c, ns in typed if vtype in ("String", "Binary") for n in ns
         }
 
         def write(row: int, t: float) -> None:
-            table[row, 0] = t
-            table[row, real_cols] = values[record_idx]
+            line = table[row]
+            line[0] = t
+            line[real_cols_at] = values[record_idx] if record_from is None else record_from
             for host, vtype, vrs, cols, ns in typed:
                 got = host.get_values(vtype, vrs)
                 if vtype in ("String", "Binary"):  # text columns: NaN here, text in the CSV
@@ -505,69 +530,78 @@ class Master:
                         if isinstance(x, bytes):  # Binary as hex digits; FMI 2 strings as bytes
                             x = x.hex() if vtype == "Binary" else x.decode("utf-8", "replace")
                         strings[n].append(str(x))
-                    table[row, cols] = np.nan
+                    line[cols] = np.nan
                 else:  # Integer, Boolean, Enumeration, FMI 3 numbers: exact up to 2**53
-                    table[row, cols] = [float(x) for x in got]
+                    line[cols] = [float(x) for x in got]
             if on_row is not None:
-                on_row(table[row])
+                on_row(line)
 
-        def transfer(host: BlockHost, vrs: list[int], idx: np.ndarray, factor, source) -> None:
-            if vrs:
-                x = source[idx] if factor is None else source[idx] * factor
-                host.set_real(vrs, x.tolist())
-
-        def collect(name: str, host: BlockHost, vrs, idx, outs, t: float) -> None:
-            if not vrs:
-                return
-            out = host.get_real(vrs)
-            total = sum(out)
-            if total - total != 0.0:  # inf or nan somewhere (or a sum that overflowed)
-                arr = np.asarray(out, dtype=float)
-                if not np.all(np.isfinite(arr)):
-                    i = int(np.flatnonzero(~np.isfinite(arr))[0])
-                    raise fail(
-                        ValueError(f"output is {arr[i]} (not finite)"), name, t, outs[i].name
-                    )
-            values[idx] = out
+        def check(name: str, out: np.ndarray, outs: list[Variable], t: float) -> None:
+            # called when out . 0 is not 0: an inf or nan in out (0 * x is 0 otherwise)
+            bad = np.flatnonzero(~np.isfinite(out))
+            if bad.size:
+                i = int(bad[0])
+                raise fail(ValueError(f"output is {out[i]} (not finite)"), name, t, outs[i].name)
 
         # -- initialisation, in stepping order ----------------------------------
         before_init = values.copy()
-        for name, host, _k, in_vrs, in_idx, factor, out_vrs, out_idx, outs in plan:
+        for name, host, _k, in_idx, factor, put, read, out, zeros, outs in plan:
             try:
                 host.setup(t0, sys_.parameters.get(name, {}))
-                transfer(host, in_vrs, in_idx, factor, before_init if jacobi else values)
+                if put is not None:
+                    x = (before_init if jacobi else values)[in_idx]
+                    put(x if factor is None else x * factor)
                 host.exit_init()
             except BlockCallError as exc:
                 raise fail(exc, name, t0, None, exc.call) from exc
-            collect(name, host, out_vrs, out_idx, outs, t0)
+            if read is not None:
+                read()
+                if out.dot(zeros) != 0.0:
+                    check(name, out, outs, t0)
         write(0, t0)
         row = 1
 
         # -- macro steps ----------------------------------------------------------
         every = s.record_every
+        source = values.copy() if jacobi else values  # Jacobi: the t_n snapshot
+        copyto = np.copyto
+        steps = [(p, p[1].do_step) for p in plan]  # bound now: after any wrapping
         for n in range(n_steps):
-            source = values.copy() if jacobi else values
-            for name, host, k, in_vrs, in_idx, factor, out_vrs, out_idx, outs in plan:
-                if (n + 1) % k:
+            if jacobi:
+                copyto(source, values)
+            t_n, t_end = t0 + n * h, t0 + (n + 1) * h
+            for (name, _host, k, in_idx, factor, put, read, out, zeros, outs), do_step in steps:
+                if k == 1:
+                    t_begin = t_n  # t0 + (n + 1 - k) * h with k = 1, the same float
+                elif (n + 1) % k:
                     continue
-                transfer(host, in_vrs, in_idx, factor, source)
+                else:
+                    t_begin = t0 + (n + 1 - k) * h
+                if put is not None:
+                    x = source[in_idx]
+                    put(x if factor is None else x * factor)
                 # the step ends exactly on t_{n+1} as computed here: h_n = t_{n+1} - t_begin
-                t_begin, t_end = t0 + (n + 1 - k) * h, t0 + (n + 1) * h
                 try:
-                    host.do_step(t_begin, t_end - t_begin)
+                    do_step(t_begin, t_end - t_begin)
                 except BlockTerminated as exc:
                     # the block asked to end the run: keep its last sample, stop cleanly
                     # (blocks after it in the order have not stepped to this time)
-                    collect(name, host, out_vrs, out_idx, outs, exc.time)
+                    if read is not None:
+                        read()
+                        if out.dot(zeros) != 0.0:
+                            check(name, out, outs, exc.time)
                     write(row, exc.time)
                     row += 1
                     ended = {"block": name, "time": exc.time, "call": exc.call, "reason": str(exc)}
                     return result("completed", ended=ended)
                 except BlockCallError as exc:
                     raise fail(exc, name, t_begin, None, exc.call) from exc
-                collect(name, host, out_vrs, out_idx, outs, t_end)
+                if read is not None:
+                    read()
+                    if out.dot(zeros) != 0.0:
+                        check(name, out, outs, t_end)
             if (n + 1) % every == 0:
-                write(row, t0 + (n + 1) * h)
+                write(row, t_end)
                 row += 1
         return result("completed")
 
@@ -587,3 +621,10 @@ class Master:
                 host.terminate()
             except Exception as exc:  # terminating after a failure may fail again
                 warnings.warn(f"block '{host.name}': terminate failed: {exc}", stacklevel=2)
+
+
+def _as_slice(index: np.ndarray) -> slice | np.ndarray:
+    """``index`` as a slice when it is consecutive (a view instead of a copy), else itself."""
+    if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
+        return slice(int(index[0]), int(index[0]) + index.size)
+    return index

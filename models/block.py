@@ -22,10 +22,13 @@ Only numpy, scipy and pythonfmu may be imported by models: the FMU carries
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import inspect
 import uuid
+from collections.abc import Callable
 from dataclasses import dataclass
+from operator import attrgetter, is_
 from typing import Any, ClassVar
 from xml.etree.ElementTree import Element, SubElement
 
@@ -218,6 +221,13 @@ class Block(Fmi2Slave):
     for scalars, a float ndarray of shape (n,) for vectors (update it in place
     or assign a new array of the same shape).
 
+    The vector Real inputs start as views into one contiguous float64 buffer, and so
+    do the vector Real outputs (another buffer): the master writes the inputs of a
+    step into their buffer in a few slice copies, and reads outputs that a model
+    wrote in place (``self.y[:] = ...``, a kernel's ``out=``) as one slice. A model
+    that assigns a new array is read element by element instead, with the same
+    values (:meth:`real_reader`, :meth:`real_writer`).
+
     Attributes
     ----------
     step_setups : int
@@ -250,6 +260,27 @@ class Block(Fmi2Slave):
         self._plans: dict[tuple[int, ...], list[tuple[str, int, int]]] = {}
         for var in self.variables:
             self._declare(var)
+        self._in_buffer, self._in_views = self._buffer("input")
+        self._out_buffer, self._out_views = self._buffer("output")
+
+    def _buffer(self, causality: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+        """One float64 buffer for the vector Real variables of a causality; each attribute
+        becomes a view of its part (start values copied in)."""
+        vectors = [
+            v
+            for v in self.variables
+            if v.causality == causality and v.kind == "Real" and v.is_vector
+        ]
+        buffer = np.zeros(sum(v.size for v in vectors))
+        views: dict[str, np.ndarray] = {}
+        pos = 0
+        for v in vectors:
+            view = buffer[pos : pos + v.size]
+            view[:] = getattr(self, v.name)
+            setattr(self, v.name, view)
+            views[v.name] = view
+            pos += v.size
+        return buffer, views
 
     # ----------------------------------------------------------------- hooks
     def initialize(self) -> None:
@@ -317,8 +348,14 @@ class Block(Fmi2Slave):
 
     def reset(self) -> None:
         """Return every variable to its start value (FMI reset)."""
+        views = {**self._in_views, **self._out_views}
         for var in self.variables:
-            setattr(self, var.name, self._start_value(var))
+            view = views.get(var.name)
+            if view is None:
+                setattr(self, var.name, self._start_value(var))
+            else:  # buffer-backed vectors stay views of their buffer
+                view[:] = self._start_value(var)
+                setattr(self, var.name, view)
 
     @staticmethod
     def _start_value(var: Var) -> Any:
@@ -440,6 +477,142 @@ class Block(Fmi2Slave):
                 getattr(self, name)[lo:hi] = array[pos : pos + hi - lo]
                 pos += hi - lo
 
+    # ------------------------------------------- Real access (arrays, for the master)
+    def _sizes(self) -> dict[str, int]:
+        return {v.name: v.size for v in self.variables}
+
+    def real_reader(self, vrs: Any, out: np.ndarray) -> Callable[[], None]:
+        """A function of no argument that writes the current values of ``vrs`` into ``out``.
+
+        What the in-process host gives the master: one call per step fills the block's
+        part of the master's value table. Each run of whole vectors between scalars is
+        one copy: a slice of the output buffer when the model wrote them in place
+        (``self.y[:] = ...``), else the bytes of the arrays the model assigned (float64,
+        the declared length; anything else is converted as :meth:`get_real` converts
+        it). Scalars are read with one attribute look-up. The values are those
+        :meth:`get_real` returns, bit for bit.
+
+        Parameters
+        ----------
+        vrs : sequence of int
+            Value references of Real variables.
+        out : ndarray
+            float64, shape (len(vrs),), C-contiguous: where the values go, in the order
+            of ``vrs``; kept by the returned function (bind it once, call it every step).
+
+        Returns
+        -------
+        callable
+            ``read()``, valid for this instance.
+        """
+        vrs = list(vrs)
+        if out.shape != (len(vrs),) or out.dtype != np.float64 or not out.flags.c_contiguous:
+            raise ValueError(
+                f"out must be C-contiguous float64 of shape ({len(vrs)},), got "
+                f"{out.dtype} {out.shape}"
+            )
+        sizes = self._sizes()
+        groups: list[list[tuple[str, int]]] = []  # runs of whole vectors (name, size)
+        starts: list[int] = []
+        scalars: list[tuple[str, int]] = []
+        pos = 0
+        for name, lo, hi in self._plan(vrs):
+            if lo < 0:
+                scalars.append((name, pos))
+                pos += 1
+                continue
+            if lo != 0 or hi != sizes[name]:  # part of a vector: the general path
+                return functools.partial(_read_any, self.get_real, vrs, out)
+            if not groups or starts[-1] + sum(n for _v, n in groups[-1]) != pos:
+                groups.append([])
+                starts.append(pos)
+            groups[-1].append((name, hi))
+            pos += hi
+        runs = [
+            _run_reader(self, g, out[p : p + sum(n for _v, n in g)])
+            for g, p in zip(groups, starts, strict=True)
+        ]
+        sc_out: Any = _positions(out, [p for _n, p in scalars])
+        sc_get = _getter([n for n, _p in scalars])
+
+        def read() -> None:
+            for run in runs:
+                run(self)
+            if sc_get is not None:
+                vals = sc_get(self)
+                try:
+                    sc_out[...] = vals
+                except (TypeError, ValueError):  # e.g. a one-element array
+                    sc_out[...] = [float(v) for v in vals]
+
+        return read
+
+    def real_writer(self, vrs: Any) -> Callable[[np.ndarray], None]:
+        """A function that sets ``vrs`` from a float64 array: what the master calls per step.
+
+        Vector inputs that are still views of the input buffer are written as a few slice
+        copies; a vector the model rebound, and scalars, are written as :meth:`set_real`
+        writes them (scalars as Python floats).
+
+        Parameters
+        ----------
+        vrs : sequence of int
+            Value references of Real variables (inputs, or parameters during setup).
+
+        Returns
+        -------
+        callable
+            ``write(x)`` with ``x`` float64 of shape (len(vrs),), one value per
+            reference in the order of ``vrs``; valid for this instance.
+        """
+        vrs = list(vrs)
+        if len(set(vrs)) != len(vrs):  # one variable written twice: in order, as set_real
+            set_real = self.set_real
+            return lambda x: set_real(vrs, x.tolist())
+        vectors: list[tuple[str, int, int, int]] = []  # (attribute, lo, hi, position in x)
+        scalars: list[tuple[str, int]] = []
+        pos = 0
+        for name, lo, hi in self._plan(vrs):
+            if lo < 0:
+                scalars.append((name, pos))
+                pos += 1
+            else:
+                vectors.append((name, lo, hi, pos))
+                pos += hi - lo
+        views = self._in_views
+        # copies (buffer slice, x start, x stop) of consecutive runs, when every vector is
+        # buffer-backed
+        runs: list[list[int]] = []
+        if all(name in views for name, *_r in vectors):
+            offset = _offsets(self._in_buffer, views)
+            for name, lo, hi, p in vectors:
+                b = offset[name] + lo
+                if runs and runs[-1][1] == b and runs[-1][3] == p:
+                    runs[-1][1] += hi - lo
+                    runs[-1][3] += hi - lo
+                else:
+                    runs.append([b, b + hi - lo, p, p + hi - lo])
+            copies = [(self._in_buffer[b0:b1], x0, x1) for b0, b1, x0, x1 in runs]
+            names = sorted({name for name, *_r in vectors})
+            vec_get = _getter(names)
+            vec_views = tuple(views[n] for n in names)
+        else:
+            copies, vec_get, vec_views = [], None, ()
+        copyto = np.copyto
+
+        def write(x: np.ndarray) -> None:
+            if vectors:
+                if vec_get is not None and all(map(is_, vec_get(self), vec_views)):
+                    for dst, x0, x1 in copies:
+                        copyto(dst, x[x0:x1])
+                else:  # a rebound input: into the model's own array, as set_real
+                    for name, lo, hi, p in vectors:
+                        getattr(self, name)[lo:hi] = x[p : p + hi - lo]
+            for name, i in scalars:
+                setattr(self, name, x.item(i))
+
+        return write
+
     def _accessors(self, var: Var, index: int) -> tuple[Any, Any]:
         name = var.name
         if not var.is_vector:
@@ -486,3 +659,88 @@ class Block(Fmi2Slave):
             position = list(root).index(root.find("CoSimulation")) + 1
             root.insert(position, node)
         return root
+
+
+def _read_any(get: Callable[[list[int]], list[float]], vrs: list[int], out: np.ndarray) -> None:
+    """``out[:] = get(vrs)``: :meth:`Block.real_reader` for parts of vectors."""
+    out[:] = get(vrs)
+
+
+def _offsets(buffer: np.ndarray, views: dict[str, np.ndarray]) -> dict[str, int]:
+    """Where each view of ``buffer`` starts in it (elements)."""
+    base = buffer.__array_interface__["data"][0]
+    return {
+        n: (v.__array_interface__["data"][0] - base) // buffer.itemsize for n, v in views.items()
+    }
+
+
+def _getter(names: list[str]) -> Callable[[Any], tuple[Any, ...]] | None:
+    """``obj -> tuple of attributes`` (always a tuple), None for no names."""
+    if not names:
+        return None
+    if len(names) == 1:
+        one = attrgetter(names[0])
+        return lambda obj: (one(obj),)
+    return attrgetter(*names)
+
+
+def _positions(out: np.ndarray, positions: list[int]) -> Any:
+    """A view of ``out`` for contiguous positions (writes go straight through), else an
+    object whose ``[...] =`` writes those positions."""
+    if not positions:
+        return None
+    if positions == list(range(positions[0], positions[-1] + 1)):
+        return out[positions[0] : positions[-1] + 1]
+    return _Scatter(out, np.array(positions, dtype=np.intp))
+
+
+class _Scatter:
+    """``s[...] = values`` writes ``values`` at fixed positions of an array."""
+
+    __slots__ = ("index", "out")
+
+    def __init__(self, out: np.ndarray, index: np.ndarray) -> None:
+        self.out, self.index = out, index
+
+    def __setitem__(self, key: Any, values: Any) -> None:
+        self.out[self.index] = values
+
+
+def _run_reader(block: Block, vectors: list[tuple[str, int]], target: np.ndarray) -> Any:
+    """For :meth:`Block.real_reader`: a function of the block that copies consecutive whole
+    vectors into ``target`` (contiguous, their total length)."""
+    names = [n for n, _s in vectors]
+    sizes = tuple(s for _n, s in vectors)
+    get = _getter(names)
+    target_bytes = memoryview(target).cast("B")
+    dtypes = (np.dtype(np.float64),) * len(names)
+    views = tuple(block._out_views.get(n) for n in names)
+    segment = None
+    if all(v is not None for v in views):
+        offset = _offsets(block._out_buffer, block._out_views)
+        first = [offset[n] for n in names]
+        if all(a + s == b for a, s, b in zip(first, sizes, first[1:], strict=False)):
+            segment = block._out_buffer[first[0] : first[0] + sum(sizes)]
+    copyto, join = np.copyto, b"".join
+
+    def read(obj: Block) -> None:
+        vals = get(obj)
+        if segment is not None and all(map(is_, vals, views)):
+            copyto(target, segment)  # written in place: one slice
+            return
+        try:  # float64 arrays of the declared lengths: their bytes, joined
+            if tuple(map(_DTYPE, vals)) == dtypes and tuple(map(len, vals)) == sizes:
+                target_bytes[:] = join(vals)
+                return
+        except (AttributeError, TypeError):  # not arrays, or not C-contiguous
+            pass
+        target[:] = [
+            x
+            for size, v in zip(sizes, vals, strict=True)
+            for x in np.asarray(v, dtype=float)[0:size].tolist()
+        ]
+
+    return read
+
+
+_DTYPE = attrgetter("dtype")

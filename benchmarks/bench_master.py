@@ -1,0 +1,174 @@
+"""The master loop's own cost per macro step: the transfer chain with blocks of zero work.
+
+The chain of ``benchmarks/transfer_chain.toml`` (ship motion -> deck flexure -> lever arm
+-> slave IMU: 81 Real outputs, 43 connected inputs, every output recorded) is rebuilt
+from blocks that declare exactly the chain models' variables (the same classes'
+``variables``, so the same vectors, scalars and value references) and do no work: each
+step publishes precomputed outputs the way the models do (every output attribute
+rebound to a new value), so what is timed is the master and the block exchange alone.
+
+Variants, interleaved in one process (best of :data:`REPEATS` rounds each, 10 ms steps):
+
+- ``full``: every connection, every output recorded: the master's cost per macro step;
+- ``no recording``: the same without recording (``output.variables`` empty);
+- ``bare``: the same four blocks with no connection and no output read (blocks that
+  declare no variables): the loop itself (time grid, rates, one ``do_step`` per block).
+
+The row prints the cost per macro step of ``full`` and the exchange's share
+(``full - bare - recording``: outputs read, checked and stored, inputs written).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+import numpy as np
+
+from benchmarks.timing import interleaved_best, load_note
+from cosim.blocks import InProcessHost
+from cosim.master import Connection, Master, MasterSettings, System
+from models.block import Block
+from models.deck_flexure import DeckFlexure
+from models.lever_arm import LeverArm
+from models.ship_motion import ShipMotion
+from models.strapdown_imu import StrapdownImu
+
+#: Macro steps per timed run (10 ms steps: 60 s simulated).
+STEPS = 6000
+STEP = 0.01
+REPEATS = 5
+
+#: The chain's connections (``benchmarks/transfer_chain.toml``), vector by vector.
+LINKS = [
+    ("ship", "omega_ib_b", "lever", "omega_ib_b"),
+    ("ship", "omega_dot_b", "lever", "omega_dot_b"),
+    ("ship", "f_b", "lever", "f_b"),
+    ("ship", "dtheta_b", "lever", "dtheta_b"),
+    ("ship", "dv_b", "lever", "dv_b"),
+    ("ship", "rpy", "lever", "rpy"),
+    ("ship", "v_n", "lever", "v_n"),
+    ("ship", "lat", "lever", "lat"),
+    ("flexure", "theta", "lever", "theta"),
+    ("flexure", "theta_dot", "lever", "theta_dot"),
+    ("flexure", "theta_ddot", "lever", "theta_ddot"),
+    ("flexure", "dtheta_flex", "lever", "dtheta_flex"),
+    ("flexure", "dtheta_dot_flex", "lever", "dtheta_dot_flex"),
+    ("lever", "dtheta_s", "imu", "dtheta_b"),
+    ("lever", "dv_s", "imu", "dv_b"),
+]
+MODELS = {"ship": ShipMotion, "flexure": DeckFlexure, "lever": LeverArm, "imu": StrapdownImu}
+
+
+def zero_work(model: type, keep_variables: bool = True) -> type:
+    """A block class with ``model``'s variables whose step only republishes its outputs.
+
+    Parameters
+    ----------
+    model : type
+        A :class:`models.block.Block` subclass (its ``variables`` are copied).
+    keep_variables : bool
+        False for a block that declares no variable at all (the ``bare`` variant).
+
+    Returns
+    -------
+    type
+        The class: ``initialize`` prepares one new value per output (a float or a
+        float64 array of the declared length), ``step`` rebinds every output to it.
+    """
+    variables = model.variables if keep_variables else ()
+    outs = [v for v in variables if v.causality == "output" and v.kind == "Real"]
+
+    def initialize(self: Block) -> None:
+        self._next = [(v.name, np.full(v.size, 0.5) if v.is_vector else 0.5) for v in outs]
+
+    def step(self: Block, t: float, h: float) -> None:
+        for name, value in self._next:
+            setattr(self, name, value)
+
+    return type(
+        f"ZeroWork{model.__name__}",
+        (Block,),
+        {
+            "__doc__": f"{model.__name__}'s variables, no work.",
+            "__module__": __name__,
+            "variables": variables,
+            "initialize": initialize,
+            "step": step,
+        },
+    )
+
+
+def chain_master(connect: bool = True, record: bool = True, variables: bool = True) -> Master:
+    """The zero-work chain's master.
+
+    Parameters
+    ----------
+    connect : bool
+        Make the chain's 43 scalar connections.
+    record : bool
+        Record every output (else nothing but the time).
+    variables : bool
+        Blocks with the chain models' variables (else blocks with none).
+
+    Returns
+    -------
+    Master
+        Gauss-Seidel, :data:`STEPS` macro steps of :data:`STEP`.
+    """
+    blocks = {n: InProcessHost(n, zero_work(cls, variables)) for n, cls in MODELS.items()}
+    links: list[Connection] = []
+    if connect and variables:
+        for src, out, dst, inp in LINKS:
+            size = next(v.size for v in MODELS[src].variables if v.name == out)
+            if size == 1:
+                links.append(Connection(src, out, dst, inp))
+            else:
+                links += [
+                    Connection(src, f"{out}[{i}]", dst, f"{inp}[{i}]") for i in range(1, size + 1)
+                ]
+    system = System(blocks, links, record=None if record else [])
+    return Master(system, MasterSettings(STEP, STEP * STEPS))
+
+
+def bench() -> list[dict[str, Any]]:
+    """Row: the master's own cost per macro step, and the exchange's share."""
+    note = load_note()
+    masters = {
+        "full": chain_master(),
+        "no recording": chain_master(record=False),
+        "bare": chain_master(connect=False, record=False, variables=False),
+    }
+
+    def runner(master: Master) -> Any:
+        state = {"ran": False}
+
+        def go() -> None:
+            if state["ran"]:
+                master.reset()
+            master.run()
+            state["ran"] = True
+
+        return go
+
+    start = time.perf_counter()
+    best = interleaved_best({k: runner(m) for k, m in masters.items()}, repeats=REPEATS)
+    wall = time.perf_counter() - start
+    us = {k: 1e6 * v / STEPS for k, v in best.items()}
+    exchange = us["no recording"] - us["bare"]
+    recording = us["full"] - us["no recording"]
+    return [
+        {
+            "name": "master loop, zero-work transfer chain (4 blocks): us per macro step",
+            "ratio": us["full"],
+            "target": "report",
+            "met": None,
+            "info": (
+                f"{us['full']:.1f} us per macro step: exchange (81 outputs read and checked, "
+                f"43 inputs written) {exchange:.1f} us ({100 * exchange / us['full']:.0f}%), "
+                f"recording 81 columns {recording:.1f} us, loop and do_step calls "
+                f"{us['bare']:.1f} us; best of {REPEATS} interleaved runs of {STEPS} steps "
+                f"({wall:.1f} s); {note}"
+            ),
+        }
+    ]
