@@ -120,6 +120,7 @@ class TransferFilter:
         self._best = 0
         self._m_prev: FloatArray | None = None
         self._flex_cache: dict[float, tuple[FloatArray, FloatArray]] = {}
+        self._q_cache: dict[float, FloatArray] = {}
         self.P_show = tuning.P0(layout, lat)
         self.x_show = np.zeros(layout.n)
         self.nis = 0.0
@@ -145,13 +146,19 @@ class TransferFilter:
 
     def _process_noise(self, T: float, m1: FloatArray | None) -> FloatArray:
         lay, tu = self.layout, self.tuning
-        Q = np.zeros((lay.n, lay.n))
-        Q[lay.dv, lay.dv] = tu.q_accel**2 * T * _I3
-        Q[lay.att, lay.att] = tu.q_gyro**2 * T * _I3
+        base = self._q_cache.get(T)  # keyed on T exactly: Q's terms in T are T's own
+        if base is None:  # the parts that depend on T only
+            if len(self._q_cache) >= 16:  # a few roundings of one period; bound it anyway
+                self._q_cache.clear()
+            base = np.zeros((lay.n, lay.n))
+            base[lay.dv, lay.dv] = tu.q_accel**2 * T * _I3
+            base[lay.att, lay.att] = tu.q_gyro**2 * T * _I3
+            if lay.flexure:
+                base[lay.xi, lay.xi] = self._flex(T)[1]
+            self._q_cache[T] = base
+        Q = base.copy()
         if lay.flexure:
-            _, Qf = self._flex(T)
-            mq = m1 @ Qf
-            Q[lay.xi, lay.xi] = Qf
+            mq = m1 @ self._flex(T)[1]
             Q[lay.dv, lay.dv] += mq @ m1.T
             Q[lay.dv, lay.xi] = mq
             Q[lay.xi, lay.dv] = mq.T

@@ -117,7 +117,6 @@ from numpy.typing import ArrayLike, NDArray
 from cosim.alignment.nav import AlignmentConfigError, Strapdown, euler_rate_matrix, nav_rates
 from models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0, OMEGA_IE
 from models.conventions import (
-    cross,
     dcm_to_euler,
     euler_to_dcm,
     rotvec_to_dcm,
@@ -343,7 +342,10 @@ def flexure_matrix(c_b_n: FloatArray, omega_eb_b: FloatArray, R0: FloatArray) ->
     -------
     ndarray, shape (3, 6)
     """
-    return np.hstack([c_b_n @ skew(omega_eb_b) @ R0, c_b_n @ R0])
+    m = np.empty((3, 6))
+    m[:, :3] = c_b_n @ skew(omega_eb_b) @ R0
+    m[:, 3:] = c_b_n @ R0
+    return m
 
 
 # ----------------------------------------------------------------------------- period sums
@@ -478,13 +480,14 @@ def propagate(x: ArrayLike, sums: PeriodSums, layout: StateLayout) -> FloatArray
     x = np.asarray(x, dtype=float)
     T = sums.T
     out = np.empty_like(x)
-    dl = x[..., layout.dl]
-    dV = x[..., layout.dv]
-    att = x[..., layout.att]
-    nab = x[..., layout.nabla]
-    eps = x[..., layout.eps]
+    nabla, eps_ = layout.nabla, layout.eps
+    dl = x[..., 0]
+    dV = x[..., 1:4]
+    att = x[..., 4:7]
+    nab = x[..., nabla]
+    eps = x[..., eps_]
     if layout.flexure:
-        xi = x[..., layout.xi]
+        xi = x[..., 7:13]
         dv0 = dV - xi @ sums.m0.T
     else:
         dv0 = dV
@@ -493,17 +496,19 @@ def propagate(x: ArrayLike, sums: PeriodSums, layout: StateLayout) -> FloatArray
     rn = float(R_N(lat_h)) + sums.height
     cl, sl, tl = math.cos(lat_h), math.sin(lat_h), math.tan(lat_h)
     lat_t = lat_h - dl
-    zero = np.zeros_like(dl)
-    d_wie = OMEGA_IE * np.stack([cl - np.cos(lat_t), zero, -(sl - np.sin(lat_t))], axis=-1)
+    # the vectors below are filled column by column: the same elementwise operations as
+    # stacking them, without the stacks (this function runs on every sigma point)
+    vec = dl.shape + (3,)
+    d_wie = np.empty(vec)
+    d_wie[..., 0] = OMEGA_IE * (cl - np.cos(lat_t))
+    d_wie[..., 1] = 0.0
+    d_wie[..., 2] = OMEGA_IE * -(sl - np.sin(lat_t))
     v_mean_e = sums.v_int[1] / T if T > 0 else 0.0
-    d_wen = np.stack(
-        [
-            dv0[..., 1] / rn,
-            -dv0[..., 0] / rm,
-            -dv0[..., 1] * tl / rn - v_mean_e * dl / (rn * cl * cl),
-        ],
-        axis=-1,
-    )
+    dv0_n, dv0_e = dv0[..., 0], dv0[..., 1]
+    d_wen = np.empty(vec)
+    d_wen[..., 0] = dv0_e / rn
+    d_wen[..., 1] = -dv0_n / rm
+    d_wen[..., 2] = -dv0_e * tl / rn - v_mean_e * dl / (rn * cl * cl)
     d_win = d_wie + d_wen
     E0 = euler_to_dcm(att)
     rot = (
@@ -511,24 +516,38 @@ def propagate(x: ArrayLike, sums: PeriodSums, layout: StateLayout) -> FloatArray
     )
     E1 = rotvec_to_dcm(rot) @ E0
     EbT = 0.5 * np.swapaxes(E0 + E1, -1, -2)
+    # cor x dv0 and (2 dw_ie + dw_en) x v_int, with the constant vectors' components
+    c0, c1, c2 = sums.cor.tolist()
+    s0, s1, s2 = sums.v_int.tolist()
+    dv0_d = dv0[..., 2]
+    w = 2.0 * d_wie + d_wen
+    w0, w1, w2 = w[..., 0], w[..., 1], w[..., 2]
+    cc = np.empty(vec)
+    cc[..., 0] = c1 * dv0_d - c2 * dv0_e
+    cc[..., 1] = c2 * dv0_n - c0 * dv0_d
+    cc[..., 2] = c0 * dv0_e - c1 * dv0_n
+    cv = np.empty(vec)
+    cv[..., 0] = w1 * s2 - w2 * s1
+    cv[..., 1] = w2 * s0 - w0 * s2
+    cv[..., 2] = w0 * s1 - w1 * s0
     dv1 = (
         dv0
         + sums.dv_f
         - EbT @ sums.dv_f
         + (EbT @ (nab @ sums.c_int.T)[..., :, None])[..., 0]
-        - cross(np.broadcast_to(sums.cor, dv0.shape), dv0)
-        - cross(2.0 * d_wie + d_wen, np.broadcast_to(sums.v_int, dv0.shape))
+        - cc
+        - cv
     )
-    out[..., layout.dl] = dl + 0.5 * (dv0[..., 0] + dv1[..., 0]) * T / rm
-    out[..., layout.att] = dcm_to_euler(E1)
-    out[..., layout.nabla] = nab
-    out[..., layout.eps] = eps
+    out[..., 0] = dl + 0.5 * (dv0_n + dv1[..., 0]) * T / rm
+    out[..., 4:7] = dcm_to_euler(E1)
+    out[..., nabla] = nab
+    out[..., eps_] = eps
     if layout.flexure:
         xi1 = xi @ sums.phi_flex.T
-        out[..., layout.xi] = xi1
-        out[..., layout.dv] = dv1 + xi1 @ sums.m1.T
+        out[..., 7:13] = xi1
+        out[..., 1:4] = dv1 + xi1 @ sums.m1.T
     else:
-        out[..., layout.dv] = dv1
+        out[..., 1:4] = dv1
     return out
 
 

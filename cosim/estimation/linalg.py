@@ -7,14 +7,17 @@ loops in Python.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
-from cosim.estimation.checks import CovarianceError, FloatArray
+from cosim.estimation.checks import CovarianceError, FloatArray, as_float
 
 __all__ = [
     "LOG_2PI",
     "broadcast_batch",
     "cholesky",
+    "float_array",
     "gauss_logpdf",
     "mahalanobis2",
     "spd_solve",
@@ -24,6 +27,33 @@ __all__ = [
 
 LOG_2PI = float(np.log(2.0 * np.pi))
 """``log(2 pi)``, the constant of every Gaussian log density."""
+
+
+def float_array(value: Any, name: str) -> FloatArray:
+    """``value`` itself if it is a C-contiguous float64 ndarray, else :func:`as_float`'s copy.
+
+    For the filters' own hot paths, which read their inputs and never write into them:
+    the copy :func:`~cosim.estimation.checks.as_float` makes is then only a cost. Other
+    arrays are copied as before, so every later product sees the memory layout it saw
+    with the copy (a strided operand can take another summation order in a matrix
+    product, and the filters' outputs would move by rounding).
+
+    Parameters
+    ----------
+    value : array_like
+        Anything :func:`numpy.array` converts to floats.
+    name : str
+        Argument name used in the error message.
+
+    Returns
+    -------
+    ndarray
+        float64, C-contiguous, same shape as ``value`` (``value`` itself when it
+        already is one).
+    """
+    if type(value) is np.ndarray and value.dtype == np.float64 and value.flags.c_contiguous:
+        return value  # a view with other strides is copied: the products see the same layout
+    return as_float(value, name)
 
 
 def symmetrise(P: FloatArray) -> FloatArray:

@@ -24,7 +24,7 @@ from cosim.estimation.checks import (
     as_float,
     check_dim,
 )
-from cosim.estimation.linalg import broadcast_batch, cholesky, sqrt_psd
+from cosim.estimation.linalg import broadcast_batch, cholesky, float_array, sqrt_psd
 
 __all__ = [
     "JulierSigmaPoints",
@@ -137,8 +137,8 @@ class _SymmetricSigmaPoints:
             If a ``P`` is not positive definite (and ``robust`` is False).
         """
         n = self.n
-        x = as_float(x, "x")
-        P = as_float(P, "P")
+        x = float_array(x, "x")
+        P = float_array(P, "P")
         if x.ndim == 0 or x.shape[-1] != n:
             raise ShapeError(f"x: expected shape (..., {n}), got {x.shape}")
         if P.ndim < 2 or P.shape[-2:] != (n, n):

@@ -26,16 +26,14 @@ from cosim.estimation.checks import (
     MeanFn,
     ResidualFn,
     ShapeError,
-    as_float,
     check_callable,
     check_dim,
     check_measurement,
-    check_shape,
     check_square,
     measurement_noise,
     set_checked,
 )
-from cosim.estimation.linalg import gauss_logpdf, spd_solve, symmetrise
+from cosim.estimation.linalg import float_array, gauss_logpdf, spd_solve, symmetrise
 from cosim.estimation.sigma_points import SigmaPoints, SigmaPointSampler
 
 __all__ = [
@@ -78,12 +76,15 @@ def unscented_transform(
     cov : ndarray, shape (..., d, d)
         Symmetrised.
     """
-    s = as_float(sigmas, "sigmas")
+    s = float_array(sigmas, "sigmas")
     if s.ndim < 2:
         raise ShapeError(f"sigmas: expected shape (..., m, d), got {s.shape}")
     m, d = s.shape[-2:]
-    Wm = check_shape(Wm, "Wm", (m,))
-    Wc = check_shape(Wc, "Wc", (m,))
+    Wm = float_array(Wm, "Wm")
+    Wc = float_array(Wc, "Wc")
+    if Wm.shape != (m,) or Wc.shape != (m,):
+        name, w = ("Wm", Wm) if Wm.shape != (m,) else ("Wc", Wc)
+        raise ShapeError(f"{name}: expected shape {(m,)}, got {w.shape}")
     mean = Wm @ s if mean_fn is None else np.asarray(mean_fn(s, Wm), dtype=float)
     if mean.shape != s.shape[:-2] + (d,):
         raise ShapeError(f"mean_fn: expected output shape {s.shape[:-2] + (d,)}, got {mean.shape}")
@@ -93,7 +94,7 @@ def unscented_transform(
         raise ShapeError(f"residual_fn: expected output shape {s.shape}, got {r.shape}")
     cov = np.swapaxes(r * Wc[:, None], -1, -2) @ r
     if noise_cov is not None:
-        nc = as_float(noise_cov, "noise_cov")
+        nc = float_array(noise_cov, "noise_cov")
         if nc.ndim == 0:
             nc = float(nc) * np.eye(d)
         if nc.shape[-2:] != (d, d):
