@@ -215,7 +215,12 @@ class DeckFlexure(Block):
             self._pos = 0
         noise = self._noise[self._pos]  # (axis, component)
         self._pos += 1
-        x1 = np.einsum("aij,aj->ai", phi, x0) + np.einsum("aij,aj->ai", root, noise)
+        # Phi x0 + L z per axis, summed in index order (the compiled step's order)
+        x1 = (phi[:, :, 0] * x0[:, 0:1] + phi[:, :, 1] * x0[:, 1:2] + phi[:, :, 2] * x0[:, 2:3]) + (
+            root[:, :, 0] * noise[:, 0:1]
+            + root[:, :, 1] * noise[:, 1:2]
+            + root[:, :, 2] * noise[:, 2:3]
+        )
         integral, theta, theta_dot = x1[:, 0], x1[:, 1], x1[:, 2]
         d_theta = theta - self.theta
         d_theta_dot = theta_dot - self.theta_dot

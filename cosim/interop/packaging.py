@@ -18,9 +18,11 @@ instantiation, visible with debug logging.
 from __future__ import annotations
 
 import tempfile
+import warnings
 from pathlib import Path
 
 import models
+from models import native
 from models.block import Block
 
 MODELS_DIR = Path(models.__file__).resolve().parent
@@ -191,6 +193,11 @@ def build_fmu(cls: type[Block], out_dir: Path, extra_files: tuple[Path, ...] = (
     """
     from pythonfmu.builder import FmuBuilder
 
+    try:  # the compiled kernels travel in the FMU's copy of models/ (models/native/build)
+        native.build()
+    except RuntimeError as exc:
+        message = f"{cls.__name__}.fmu without compiled kernels (runs numpy): {exc}"
+        warnings.warn(message, stacklevel=2)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="ins_cosim_fmu_") as tmp:
