@@ -43,7 +43,6 @@ from cosim.verify.sequential import (
 
 TESTS = Path(__file__).resolve().parent
 SEED = 77
-ARCMIN = math.pi / (180.0 * 60.0)
 
 SCENARIO = """
 [scenario]
