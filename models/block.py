@@ -258,6 +258,8 @@ class Block(Fmi2Slave):
         # access plans built from it (see get_real / set_real)
         self._real_slots: dict[int, tuple[str, int]] = {}
         self._plans: dict[tuple[int, ...], list[tuple[str, int, int]]] = {}
+        self._readers: dict[tuple[int, ...], tuple[np.ndarray, Callable[[], None]]] = {}
+        self._writers: dict[tuple[int, ...], Callable[..., None]] = {}
         for var in self.variables:
             self._declare(var)
         self._in_buffer, self._in_views = self._buffer("input")
@@ -427,7 +429,8 @@ class Block(Fmi2Slave):
         return plan
 
     def get_real(self, vrs: Any) -> list[float]:
-        """Values of Real variables (pythonfmu's per-scalar getters, one slice per vector).
+        """Values of Real variables (what pythonfmu's ``fmi2GetReal`` calls): the array
+        reader of :meth:`real_reader`, cached per list of value references.
 
         Parameters
         ----------
@@ -439,32 +442,51 @@ class Block(Fmi2Slave):
         list of float
             In the order of ``vrs``.
         """
-        out: list[float] = []
-        for name, lo, hi in self._plan(vrs):
-            value = getattr(self, name)
-            if lo < 0:
-                out.append(float(value))
-            elif (
-                lo == 0
-                and type(value) is np.ndarray
-                and value.shape == (hi,)
-                and (value.dtype == np.float64)
-            ):
-                out += value.tolist()  # the whole vector, already floats
-            else:
-                out.extend(np.asarray(value, dtype=float)[lo:hi].tolist())
-        return out
+        key = tuple(vrs)
+        entry = self._readers.get(key)
+        if entry is None:
+            out = np.zeros(len(key))
+            entry = (out, self.real_reader(key, out))
+            if len(self._readers) >= 64:  # callers use a few fixed lists; bound the cache
+                self._readers.clear()
+            self._readers[key] = entry
+        entry[1]()
+        return entry[0].tolist()
 
     def set_real(self, vrs: Any, values: Any) -> None:
-        """Set Real variables; vector elements are written into the attribute's array.
+        """Set Real variables; vector elements are written into the attribute's array
+        (a few slice copies when the vectors are views of the input buffer).
 
         Parameters
         ----------
         vrs : sequence of int
             Value references.
         values : sequence of float
-            One value per reference.
+            One value per reference; scalars are set to these objects as given.
         """
+        key = tuple(vrs)
+        write = self._writers.get(key)
+        if write is None:
+            write = self._writer(key)
+            if len(self._writers) >= 64:
+                self._writers.clear()
+            self._writers[key] = write
+        write(None, values)
+
+    def _get_each(self, vrs: Any) -> list[float]:
+        """The values of ``vrs`` one segment after the other (for parts of vectors)."""
+        out: list[float] = []
+        for name, lo, hi in self._plan(vrs):
+            value = getattr(self, name)
+            if lo < 0:
+                out.append(float(value))
+            else:
+                out.extend(np.asarray(value, dtype=float)[lo:hi].tolist())
+        return out
+
+    def _set_each(self, vrs: Any, values: Any) -> None:
+        """:meth:`set_real` one segment after the other (a reference given twice: the last
+        value wins, as in order)."""
         pos = 0
         array = None
         for name, lo, hi in self._plan(vrs):
@@ -522,7 +544,7 @@ class Block(Fmi2Slave):
                 pos += 1
                 continue
             if lo != 0 or hi != sizes[name]:  # part of a vector: the general path
-                return functools.partial(_read_any, self.get_real, vrs, out)
+                return functools.partial(_read_any, self._get_each, vrs, out)
             if not groups or starts[-1] + sum(n for _v, n in groups[-1]) != pos:
                 groups.append([])
                 starts.append(pos)
@@ -551,8 +573,8 @@ class Block(Fmi2Slave):
         """A function that sets ``vrs`` from a float64 array: what the master calls per step.
 
         Vector inputs that are still views of the input buffer are written as a few slice
-        copies; a vector the model rebound, and scalars, are written as :meth:`set_real`
-        writes them (scalars as Python floats).
+        copies; a vector the model rebound is written into the model's array, scalars
+        are set to Python floats (as :meth:`set_real` with ``x.tolist()``).
 
         Parameters
         ----------
@@ -565,14 +587,22 @@ class Block(Fmi2Slave):
             ``write(x)`` with ``x`` float64 of shape (len(vrs),), one value per
             reference in the order of ``vrs``; valid for this instance.
         """
-        vrs = list(vrs)
-        if len(set(vrs)) != len(vrs):  # one variable written twice: in order, as set_real
-            set_real = self.set_real
-            return lambda x: set_real(vrs, x.tolist())
+        return functools.partial(self._writer(tuple(vrs)), raw=None)
+
+    def _writer(self, key: tuple[int, ...]) -> Callable[..., None]:
+        """``write(x, raw)`` for :meth:`real_writer` (``raw`` None: scalars from ``x``) and
+        :meth:`set_real` (``x`` None: made from ``raw`` when there are vectors)."""
+        if len(set(key)) != len(key):  # a reference given twice: in order
+            set_each = self._set_each
+
+            def write_each(x: np.ndarray | None, raw: Any = None) -> None:
+                set_each(key, raw if raw is not None else x.tolist())
+
+            return write_each
         vectors: list[tuple[str, int, int, int]] = []  # (attribute, lo, hi, position in x)
         scalars: list[tuple[str, int]] = []
         pos = 0
-        for name, lo, hi in self._plan(vrs):
+        for name, lo, hi in self._plan(key):
             if lo < 0:
                 scalars.append((name, pos))
                 pos += 1
@@ -581,7 +611,7 @@ class Block(Fmi2Slave):
                 pos += hi - lo
         views = self._in_views
         # copies (buffer slice, x start, x stop) of consecutive runs, when every vector is
-        # buffer-backed
+        # a view of the input buffer
         runs: list[list[int]] = []
         if all(name in views for name, *_r in vectors):
             offset = _offsets(self._in_buffer, views)
@@ -598,18 +628,24 @@ class Block(Fmi2Slave):
             vec_views = tuple(views[n] for n in names)
         else:
             copies, vec_get, vec_views = [], None, ()
-        copyto = np.copyto
+        copyto, asarray = np.copyto, np.asarray
 
-        def write(x: np.ndarray) -> None:
+        def write(x: np.ndarray | None, raw: Any = None) -> None:
             if vectors:
+                if x is None:
+                    x = asarray(raw, dtype=float)
                 if vec_get is not None and all(map(is_, vec_get(self), vec_views)):
                     for dst, x0, x1 in copies:
                         copyto(dst, x[x0:x1])
-                else:  # a rebound input: into the model's own array, as set_real
+                else:  # a rebound input (or not an input): into the model's own array
                     for name, lo, hi, p in vectors:
                         getattr(self, name)[lo:hi] = x[p : p + hi - lo]
-            for name, i in scalars:
-                setattr(self, name, x.item(i))
+            if raw is None:
+                for name, i in scalars:
+                    setattr(self, name, x.item(i))
+            else:
+                for name, i in scalars:
+                    setattr(self, name, raw[i])
 
         return write
 
