@@ -60,7 +60,14 @@ from cosim.verify.workers import (
     run_one,
 )
 
-__all__ = ["CRASH_ATTEMPTS", "WorkerPool", "die_with", "keeps_workers", "pool_context"]
+__all__ = [
+    "CRASH_ATTEMPTS",
+    "WorkerPool",
+    "die_with",
+    "keeps_workers",
+    "pool_context",
+    "start_forkserver",
+]
 
 #: Modules the forkserver imports once, so that forked workers start without imports.
 PRELOAD = ["cosim.verify.workers", "cosim.verify.pool", "cosim.alignment", "models"]
@@ -78,10 +85,11 @@ _PR_SET_PDEATHSIG = 1  # linux/prctl.h
 def pool_context() -> multiprocessing.context.BaseContext:
     """The start method of local workers: a preloaded forkserver, else spawn.
 
-    The forkserver starts with the first pool of this process and imports the modules
-    this process has loaded from ``cosim`` and ``models`` by then (for a campaign:
-    everything its scenario's blocks need); every worker is forked from it, with no
-    imports of its own.
+    The forkserver starts with the first pool of this process (:func:`start_forkserver`)
+    and imports the simulation code once: :data:`PRELOAD`, every module of ``models`` and
+    ``cosim.alignment`` (the built-in blocks) and whatever this process has loaded from
+    ``cosim`` and ``models`` by then; every worker is forked from it, with no imports of
+    its own (a block from another package is imported by each worker).
 
     Returns
     -------
@@ -89,12 +97,37 @@ def pool_context() -> multiprocessing.context.BaseContext:
     """
     if "forkserver" in multiprocessing.get_all_start_methods():
         ctx = multiprocessing.get_context("forkserver")
-        # what this process has imported to check the scenario (its blocks' modules
-        # included): the forkserver imports it once, the workers fork with it loaded
-        loaded = [m for m in sys.modules if m.split(".")[0] in ("cosim", "models")]
-        ctx.set_forkserver_preload([*PRELOAD, *sorted(set(loaded) - set(PRELOAD))])
+        loaded = {m for m in sys.modules if m.split(".")[0] in ("cosim", "models")}
+        ctx.set_forkserver_preload([*PRELOAD, *sorted((loaded | _builtin_blocks()) - set(PRELOAD))])
         return ctx
     return multiprocessing.get_context("spawn")
+
+
+def _builtin_blocks() -> set[str]:
+    import pkgutil
+
+    import cosim.alignment
+    import models
+
+    return {
+        f"{package.__name__}.{info.name}"
+        for package in (models, cosim.alignment)
+        for info in pkgutil.iter_modules(package.__path__)
+    }
+
+
+def start_forkserver() -> None:
+    """Start this process's forkserver now, if it does not run (it imports on its own).
+
+    A pool calls it when it is made, so that the forkserver imports the simulation code
+    on another core while this process checks the scenario; the first worker forked
+    from it waits until it is done. Nothing where the platform has no forkserver.
+    """
+    if "forkserver" in multiprocessing.get_all_start_methods():
+        pool_context()
+        from multiprocessing import forkserver
+
+        forkserver.ensure_running()
 
 
 def die_with(campaign: int) -> None:
@@ -195,6 +228,7 @@ class _Process:
         self.proc = ctx.Process(
             target=_worker_main, args=(spec, child, self.board.raw, os.getpid()), daemon=True
         )
+        self.born = time.perf_counter()
         self.proc.start()
         child.close()
         self.ready = False
@@ -242,7 +276,9 @@ class WorkerPool:
     """Local worker processes kept across the runs of a campaign and across campaigns.
 
     Use it as a context manager (or call :meth:`close`); ``workers == 1`` runs the jobs
-    in this process, keeping the built blocks between calls as well.
+    in this process, keeping the built blocks between calls as well, and so does a call
+    with a single job while the pool has no process. Making a pool of more than one
+    starts this process's forkserver (:func:`start_forkserver`).
 
     Parameters
     ----------
@@ -260,9 +296,13 @@ class WorkerPool:
             raise CampaignError(f"--workers must be >= 1, got {workers}")
         self.workers = int(workers)
         self.started = 0  # processes started over the pool's life (replacements included)
+        #: Wall time [s] each process took from its start to ready (blocks built).
+        self.ready_times: list[float] = []
         self._procs: list[_Process] = []
         self._spec: WorkerSpec | None = None
         self._here = False
+        if self.workers > 1:
+            start_forkserver()  # it imports while the caller checks the scenario
 
     @property
     def pids(self) -> list[int]:
@@ -329,6 +369,9 @@ class WorkerPool:
             self._here = True
             run_here(spec, jobs, done, keep=True)
             return
+        if len(jobs) == 1 and not self._procs:  # one run: not worth a process's start
+            run_here(spec, jobs, done)
+            return
         if spec != self._spec:
             self._stop_all(30)
             self._spec = spec
@@ -359,6 +402,7 @@ class WorkerPool:
                     continue
                 if msg is not None and msg[0] == "ready":
                     p.ready, start_failures = True, 0
+                    self.ready_times.append(time.perf_counter() - p.born)
                 elif msg is not None and msg[0] == "done":
                     p.job = None
                     done(msg[1])
