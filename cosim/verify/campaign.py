@@ -35,6 +35,7 @@ import numpy as np
 from cosim.errors import ScenarioError
 from cosim.scenario import Scenario, build_master, load_scenario
 from cosim.verify.lock import holding_report_folder
+from cosim.verify.pool import WorkerPool, keeps_workers
 from cosim.verify.records import RunRecord, read_records, save_record, write_metrics_table
 from cosim.verify.requirements import Requirement, Verdict
 from cosim.verify.seeds import SEED_RULE, Stratified, run_seeds, stratified_draws
@@ -429,6 +430,7 @@ def _check_resume(old: dict[str, Any], new: dict[str, Any], out_dir: Path) -> No
 
 
 @holding_report_folder("out_dir")  # one campaign at a time in a report folder
+@keeps_workers  # a pool made now: its forkserver imports while prepare() checks
 def run_campaign(
     scenario: str | Path,
     out_dir: str | Path,
@@ -443,6 +445,7 @@ def run_campaign(
     only_runs: Sequence[int] | None = None,
     rerun_crashed: bool = False,
     strata: Sequence[int] | None = None,
+    pool: WorkerPool | None = None,
 ) -> Campaign:
     """Run (or resume) a Monte Carlo campaign and judge its requirements.
 
@@ -474,6 +477,9 @@ def run_campaign(
         Batch ends of the stratified design (the looks of ``verify --until-decided``,
         each batch its own Latin hypercube); ``runs`` may grow up to the last. Default:
         one design over ``runs``. Ignored without ``[campaign] stratify``.
+    pool : cosim.verify.pool.WorkerPool, optional
+        Run on these worker processes (they stay for the caller's next campaign, e.g.
+        the next look of ``--until-decided``); replaces ``workers``.
 
     Returns
     -------
@@ -566,7 +572,7 @@ def run_campaign(
             bar.write(f"run {record.index} failed: {record.error}", file=sys.stderr)
 
     try:
-        run_jobs(spec, jobs, done, workers=workers, cluster=cluster)
+        run_jobs(spec, jobs, done, workers=workers, cluster=cluster, pool=pool)
     except KeyboardInterrupt:
         raise CampaignInterrupted(count[0], len(wanted), out) from None
     finally:
@@ -606,7 +612,7 @@ def run_campaign(
             "software": software_versions(),
         },
         execution={
-            "workers": None if cluster else workers,
+            "workers": None if cluster else (pool.workers if pool is not None else workers),
             "cluster": cluster,
             "resumed": resume,
             "runs_this_session": len(jobs),

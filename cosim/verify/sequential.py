@@ -102,6 +102,7 @@ from cosim.verify.campaign import (
     run_campaign,
 )
 from cosim.verify.lock import holding_report_folder
+from cosim.verify.pool import WorkerPool, keeps_workers
 from cosim.verify.records import read_records
 from cosim.verify.requirements import (
     SATISFIED,
@@ -442,6 +443,7 @@ def _look_line(j: int, looks: Looks, judged: list[tuple[Requirement, SequentialV
 
 
 @holding_report_folder("out_dir")  # one campaign at a time in the folder, over all looks
+@keeps_workers  # one pool for all looks: its processes and built blocks stay
 def run_until_decided(
     scenario: str | Path,
     out_dir: str | Path,
@@ -455,6 +457,7 @@ def run_until_decided(
     resume: bool = False,
     progress: bool = True,
     echo: Callable[[str], None] | None = None,
+    pool: WorkerPool | None = None,
 ) -> Campaign:
     """Add runs in batches until every requirement is decided or the cap is reached.
 
@@ -484,6 +487,9 @@ def run_until_decided(
         Progress bar on stderr.
     echo : callable, optional
         Called with one line per look (what was decided).
+    pool : cosim.verify.pool.WorkerPool, optional
+        The worker processes of every look (default: one pool of ``workers``, kept
+        from the first look to the last and closed at the end).
 
     Returns
     -------
@@ -548,6 +554,7 @@ def run_until_decided(
                 resume=resume or j > 0,
                 progress=progress,
                 strata=looks.runs,
+                pool=pool,
             )
             ran += int(campaign.execution["runs_this_session"])
             records = campaign.records
