@@ -12,7 +12,9 @@ Rows (ratios of wall times measured side by side, best of interleaved repetition
 Only ``Master.run`` and ``monolithic.simulate`` are timed (building the blocks,
 loading FMUs and reading parameters are one-off costs, shown in the info column).
 A pyinstrument profile of a 20 s in-process run is written to
-``out/bench/profile_chain.txt``; the row's info column gives its breakdown.
+``out/bench/profile_chain.txt``; the row's info column gives its breakdown (share and
+microseconds per macro step) and which path the models take (compiled kernels or numpy,
+:func:`models.native.status`; ``INS_COSIM_NATIVE=0`` measures the numpy path).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import cosim
 from benchmarks.monolithic import CHAIN_BLOCKS, CHAIN_SCENARIO, chain_parameters, simulate
 from benchmarks.timing import ROOT, fmu_dir, interleaved_best, load_note
 from cosim.scenario import build_master
+from models import native
 
 REPEATS = 2
 PROFILE_STOP = 20.0
@@ -126,8 +129,12 @@ def profile_breakdown(stop: float = PROFILE_STOP) -> str:
     total = sum(shares.values())
     if not total:
         return "profile empty"
-    parts = [f"{k} {100 * v / total:.0f}%" for k, v in shares.most_common()]
-    return f"profile ({stop:g} s run, {PROFILE_FILE.relative_to(ROOT)}): " + ", ".join(parts)
+    steps = round(stop / chain.master.settings.step)
+    parts = [f"{k} {100 * v / total:.0f}% ({1e6 * v / steps:.0f})" for k, v in shares.most_common()]
+    return (
+        f"profile ({stop:g} s run, {PROFILE_FILE.relative_to(ROOT)}; us per macro step; "
+        f"models: {native.status()}): " + ", ".join(parts)
+    )
 
 
 def bench() -> list[dict[str, Any]]:

@@ -44,6 +44,7 @@ Outputs at the step end: ``theta`` [rad], ``theta_dot`` [rad/s], ``theta_ddot``
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -124,6 +125,36 @@ def noise_factor(qd: np.ndarray) -> np.ndarray:
     return d[:, None] * root
 
 
+@functools.lru_cache(maxsize=64)
+def axis_model(beta: float, q: float, h: float) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`discretize_flexure` and its :func:`noise_factor`, cached for the process.
+
+    A campaign's runs (and the master's resets) share the same ``(beta, q, h)``; the
+    matrix exponentials are computed once (read-only arrays, the same numbers).
+
+    Parameters
+    ----------
+    beta : float
+        Damping parameter [1/s].
+    q : float
+        Two-sided PSD of the driving white noise [rad^2/s^3].
+    h : float
+        Step [s], > 0.
+
+    Returns
+    -------
+    phi : ndarray, shape (3, 3)
+        Transition of ``[I, theta, theta']``.
+    root : ndarray, shape (3, 3)
+        ``L`` with ``L L^T = Qd``.
+    """
+    phi, qd = discretize_flexure(beta, q, h)
+    root = noise_factor(qd)
+    for a in (phi, root):
+        a.setflags(write=False)
+    return phi, root
+
+
 class DeckFlexure(Block):
     """Deck flexure angles: second-order Gauss-Markov per axis with exact discretisation."""
 
@@ -178,9 +209,9 @@ class DeckFlexure(Block):
             self.step_setups += 1
             phis, roots = [], []
             for beta, q in zip(self._beta, self._q, strict=True):
-                phi, qd = discretize_flexure(float(beta), float(q), h)
+                phi, root = axis_model(float(beta), float(q), float(h))
                 phis.append(phi)
-                roots.append(noise_factor(qd))
+                roots.append(root)
             self._cache = (h, np.array(phis), np.array(roots))
             self._cache_ptrs = (native.pointer(self._cache[1]), native.pointer(self._cache[2]))
         return self._cache[1], self._cache[2]

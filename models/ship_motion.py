@@ -40,8 +40,8 @@ import numpy as np
 
 from models import native
 from models.block import STEP_RTOL, Block, parameter, same_step
-from models.constants import DEG
-from models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
+from models.constants import DEG, OMEGA_IE
+from models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth, gravity
 from models.step_paths import simpson_nodes, substeps
 
 
@@ -91,6 +91,24 @@ class ShipMotion(Block):
         self.dtheta_b[:] = 0.0
         self.dv_b[:] = 0.0
         self._io = native.Buffers(self, (), ROW_OUTPUTS)
+        lib = native.library()
+        self._native: tuple | None = None
+        if lib is not None and not self._moving:
+            lat0 = float(self.lat0)
+            par = np.concatenate(
+                [
+                    self._w,
+                    self._amp,
+                    np.asarray(self.phase, dtype=float),
+                    np.asarray(self.rpy_mean, dtype=float),
+                    [
+                        OMEGA_IE * np.cos(lat0),
+                        OMEGA_IE * np.sin(lat0),
+                        float(gravity(lat0, float(self.h0))),
+                    ],
+                ]
+            )
+            self._native = (lib, par)
 
     def _truth(self, tt: np.ndarray) -> tuple[ImuTruth, np.ndarray, np.ndarray]:
         """Closed-form trajectory and inertial truth at the instants ``tt`` (shape (m,)).
@@ -181,8 +199,28 @@ class ShipMotion(Block):
             grid = t + np.arange(size + 1) * h
         starts = grid[:-1]
         steps = (grid[1:] - starts)[:, None]  # h_n = t_{n+1} - t_n, as the master passes it
-        truth, rpy, v_n = self._truth((starts[:, None] + steps * s).ravel())
+        tt = (starts[:, None] + steps * s).ravel()
         m = len(s)
+        if self._native is not None:  # the moored ship, compiled: the same rows
+            rows = np.empty((size, 21))
+            lib, par = self._native
+            lib.ship_truth_steps(
+                native.pointer(par),
+                native.pointer(tt),
+                native.pointer(w),
+                native.pointer(np.ascontiguousarray(steps[:, 0])),
+                size,
+                m,
+                native.pointer(rows),
+            )
+            self._ahead = _Ahead(
+                steps=steps[:, 0].tolist(),
+                starts=starts.tolist(),
+                rows=rows,
+                position=[(float(self.lat0), float(self.lon0), float(self.h0))] * size,
+            )
+            return self._ahead
+        truth, rpy, v_n = self._truth(tt)
         ends = np.arange(1, size + 1) * m - 1  # the node at each step's end
         rows = np.concatenate(
             [
@@ -191,8 +229,8 @@ class ShipMotion(Block):
                 truth.omega_ib_b[ends],
                 truth.omega_dot_b[ends],
                 truth.f_b[ends],
-                steps * np.matmul(w, truth.omega_ib_b.reshape(size, m, 3)),
-                steps * np.matmul(w, truth.f_b.reshape(size, m, 3)),
+                steps * _simpson(w, truth.omega_ib_b.reshape(size, m, 3)),
+                steps * _simpson(w, truth.f_b.reshape(size, m, 3)),
             ],
             axis=1,
         )
@@ -205,6 +243,14 @@ class ShipMotion(Block):
             position=[tuple(p) for p in position],
         )
         return self._ahead
+
+
+def _simpson(w: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """``sum_j w_j x[:, j]`` in node order (cumsum is sequential, as the compiled step).
+
+    ``w`` (m,) weights, ``x`` (size, m, 3) values at the nodes of each step -> (size, 3).
+    """
+    return np.cumsum(w[None, :, None] * x, axis=1)[:, -1]
 
 
 #: The vector outputs in the order of a row of :class:`_Ahead` (their declaration order).

@@ -29,7 +29,7 @@ from cosim.interop.references import MAX_STEPS, SEED, drive
 from cosim.scenario import build_master
 from models import native
 
-COMPILED = ("LeverArm", "DeckFlexure", "StrapdownImu")
+COMPILED = ("LeverArm", "DeckFlexure", "StrapdownImu", "ShipMotion")
 BLOCKS = models.truth_models()
 RTOL = 1e-12  # the reference files' tolerance (tests/test_fmus.py)
 
@@ -61,7 +61,7 @@ def test_the_switch_turns_them_off(monkeypatch: pytest.MonkeyPatch) -> None:
     assert native.status() == f"numpy ({native.ENV}=0)"
 
 
-@pytest.mark.parametrize("name", [*COMPILED, "ShipMotion"])
+@pytest.mark.parametrize("name", COMPILED)
 def test_compiled_equals_numpy_on_the_reference_drive(
     name: str, monkeypatch: pytest.MonkeyPatch
 ) -> None:

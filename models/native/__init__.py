@@ -130,6 +130,7 @@ def _declare(lib: ctypes.CDLL) -> None:
         "lever_arm_publish": ([p, p, d, p], None),
         "deck_flexure_step": ([p, p, p, p, p, p, p, d], None),
         "strapdown_imu_step": ([p, p, p, p, p, p, p, d], None),
+        "ship_truth_steps": ([p, p, p, p, ctypes.c_long, ctypes.c_long, p], None),
     }
     for name, (args, res) in signatures.items():
         fn = getattr(lib, name)
