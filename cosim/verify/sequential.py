@@ -71,14 +71,17 @@ is never worse than independent runs with one run fewer. Stratification is used 
 metric grows with a drawn turn-on error (seed 001's bias tilts the level), i.e. where g
 has a large additive part: there the statistic scatters less than the bounds assume, so
 the bounds are conservative (they cover more often than stated, and are wider than they
-need be). They are not exact: the distribution of the statistic is no longer exactly
-chi-square or binomial, and for a metric with no additive part in the draws its
-variance can exceed the independent one by the factor n / (n - 1) (3 % for a 30-run
-batch). The sequential rule needs nothing beyond this: each look's bound is as valid as
-a fixed stratified campaign's, and the union bound over the looks holds as before.
-Simulated (tests/test_sequential_strata.py): with the metrics' spread dominated by a
-stratified draw, the rule's wrong-verdict rate on batch designs is at most that on
-independent runs.
+need be), to the extent that a smaller variance means smaller tails (asymptotically it
+does: the mean over a hypercube is asymptotically normal, Owen 1992). They are not
+exact: the distribution of the statistic is no longer exactly chi-square or binomial,
+and for a metric with no additive part in the draws its variance can exceed the
+independent one by the factor n / (n - 1) (3 % for a 30-run batch). The sequential rule
+needs nothing beyond this: each look's bound is as valid as a fixed stratified
+campaign's, and the union bound over the looks holds as before. Simulated
+(tests/test_sequential_strata.py, 4000 campaigns per case, looks 20, 40, 80, 160, 320,
+metrics ``|0.95 z + 0.31 e|`` with z the stratified draw and e independent): an RMS 10 %
+above its limit is called satisfied in 0 of the campaigns on batch designs (0.2 % with z
+drawn independently), a p95 exactly at its limit violated in 0.03 % (2.6 %).
 """
 
 from __future__ import annotations
