@@ -482,7 +482,7 @@ class Master:
         # Per block, in stepping order: name, host, rate, its inputs (source slots, factors
         # or None when every factor is 1: x * 1.0 == x; the host's array writer) and its
         # outputs (the host's reader into the block's part of the value table, that part,
-        # zeros for the finiteness check, the variables). Readers and writers are bound
+        # its tolist for the finiteness check, the variables). Readers and writers are bound
         # here, for this run (a reset makes new in-process instances).
         plan = []
         for name, k in zip(self.order, rates, strict=True):
@@ -501,7 +501,7 @@ class Master:
                     host.real_writer(in_vrs) if in_vrs else None,
                     host.real_reader(out_vrs, out) if out_vrs else None,
                     out,
-                    np.zeros(len(out_vrs)),
+                    out.tolist,
                     outs,
                 )
             )
@@ -537,7 +537,7 @@ class Master:
                 on_row(line)
 
         def check(name: str, out: np.ndarray, outs: list[Variable], t: float) -> None:
-            # called when out . 0 is not 0: an inf or nan in out (0 * x is 0 otherwise)
+            # called when the sum of out is not finite: an inf or nan in out, or an overflow
             bad = np.flatnonzero(~np.isfinite(out))
             if bad.size:
                 i = int(bad[0])
@@ -545,7 +545,7 @@ class Master:
 
         # -- initialisation, in stepping order ----------------------------------
         before_init = values.copy()
-        for name, host, _k, in_idx, factor, put, read, out, zeros, outs in plan:
+        for name, host, _k, in_idx, factor, put, read, out, listed, outs in plan:
             try:
                 host.setup(t0, sys_.parameters.get(name, {}))
                 if put is not None:
@@ -556,7 +556,8 @@ class Master:
                 raise fail(exc, name, t0, None, exc.call) from exc
             if read is not None:
                 read()
-                if out.dot(zeros) != 0.0:
+                total = sum(listed())
+                if total - total != 0.0:  # inf or nan (or a sum that overflowed)
                     check(name, out, outs, t0)
         write(0, t0)
         row = 1
@@ -570,7 +571,7 @@ class Master:
             if jacobi:
                 copyto(source, values)
             t_n, t_end = t0 + n * h, t0 + (n + 1) * h
-            for (name, _host, k, in_idx, factor, put, read, out, zeros, outs), do_step in steps:
+            for (name, _host, k, in_idx, factor, put, read, out, listed, outs), do_step in steps:
                 if k == 1:
                     t_begin = t_n  # t0 + (n + 1 - k) * h with k = 1, the same float
                 elif (n + 1) % k:
@@ -588,7 +589,8 @@ class Master:
                     # (blocks after it in the order have not stepped to this time)
                     if read is not None:
                         read()
-                        if out.dot(zeros) != 0.0:
+                        total = sum(listed())
+                        if total - total != 0.0:  # inf or nan (or a sum that overflowed)
                             check(name, out, outs, exc.time)
                     write(row, exc.time)
                     row += 1
@@ -598,7 +600,8 @@ class Master:
                     raise fail(exc, name, t_begin, None, exc.call) from exc
                 if read is not None:
                     read()
-                    if out.dot(zeros) != 0.0:
+                    total = sum(listed())
+                    if total - total != 0.0:  # inf or nan (or a sum that overflowed)
                         check(name, out, outs, t_end)
             if (n + 1) % every == 0:
                 write(row, t_end)
