@@ -413,7 +413,25 @@ class UnscentedKalmanFilter:
         self.y: FloatArray | None = None
         self.S: FloatArray | None = None
         self.z_pred: FloatArray | None = None
-        self.log_likelihood: float | None = None
+        self.log_likelihood = None
+
+    @property
+    def log_likelihood(self) -> float | None:
+        """``log N(y; 0, S)`` of the last update's innovation (None before any update).
+
+        Computed from the update's innovation and the Cholesky factor of ``S`` the first
+        time it is read after the update.
+        """
+        if self._loglik is None and self._loglik_from is not None:
+            y, L = self._loglik_from
+            self._loglik = float(gauss_logpdf(y, L))
+            self._loglik_from = None
+        return self._loglik
+
+    @log_likelihood.setter
+    def log_likelihood(self, value: float | None) -> None:
+        self._loglik = value
+        self._loglik_from = None
 
     @property
     def points(self) -> SigmaPoints:
@@ -514,7 +532,8 @@ class UnscentedKalmanFilter:
         )
         self.sigmas_h = out["sigmas_h"]
         self.z_pred, self.S, self.K, self.y = out["z_pred"], out["S"], out["K"], out["y"]
-        self.log_likelihood = float(gauss_logpdf(self.y, out["chol_S"]))
+        self._loglik = None  # computed when read (a filter that never reads it saves it)
+        self._loglik_from = (self.y.copy(), out["chol_S"])
         set_checked(self, x=out["x"], P=out["P"])
         self.x_post = self.x.copy()
         self.P_post = self.P.copy()
