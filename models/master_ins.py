@@ -34,7 +34,8 @@ samples). The delayed value at ``t_k - d`` is
 Because samples carry their times, a step size that varies (as fmpy's last step may)
 needs no special handling. Random numbers: ``numpy.random.default_rng(seed)``; at
 initialisation 3 normals (attitude error) then 3 (initial Gauss-Markov state); per
-step 3 (Gauss-Markov) then 3 (white noise).
+step 3 (Gauss-Markov) then 3 (white noise), drawn :data:`AHEAD_STEPS` steps at a time
+(the same numbers in the same order).
 """
 
 from __future__ import annotations
@@ -50,7 +51,6 @@ from models.conventions import wrap_angle
 _V3 = (0.0, 0.0, 0.0)
 # Layout of a buffered sample: v_n (0:3), rpy (3:6), lat, lon, h (6:9).
 _ANGLE = np.array([False, False, False, True, True, True, False, True, False])
-_WRAP_RPY = np.array([True, False, True])
 
 
 class MasterIns(Block):
@@ -90,18 +90,18 @@ class MasterIns(Block):
         z = self._rng.standard_normal(6)
         self._delta = np.asarray(self.attitude_error, float) + self.attitude_error_sigma * z[:3]
         self._gm = self.velocity_gm_sigma * z[3:]
+        self._z = np.empty((0, 6))  # normals drawn ahead, 6 per step
+        self._pos = 0
         self._buffer: deque[tuple[float, np.ndarray]] = deque()
         self._buffer.append((self.start_time, self._sample()))
         self._publish(self._buffer[0][1], np.zeros(3))
 
     def _sample(self) -> np.ndarray:
-        return np.concatenate(
-            [
-                np.asarray(self.v_n, float),
-                np.asarray(self.rpy, float),
-                [float(self.lat), float(self.lon), float(self.h)],
-            ]
-        )
+        x = np.empty(9)
+        x[0:3] = self.v_n
+        x[3:6] = self.rpy
+        x[6:9] = (float(self.lat), float(self.lon), float(self.h))
+        return x
 
     def _delayed(self, target: float, tol: float) -> np.ndarray:
         buf = self._buffer
@@ -118,20 +118,31 @@ class MasterIns(Block):
         return x0 + w * diff
 
     def _publish(self, x: np.ndarray, white: np.ndarray) -> None:
-        self.v_master_n = x[0:3] + self._gm + white
-        rpy = x[3:6] + self._delta
-        self.rpy_master = np.where(_WRAP_RPY, wrap_angle(rpy), rpy)
-        self.lat_master = float(x[6])
-        self.lon_master = float(wrap_angle(x[7]))
-        self.h_master = float(x[8])
+        # written in place (the block's buffer views); roll and yaw wrapped with the scalar
+        # wrap_angle (the same numbers as its array form), pitch not
+        self.v_master_n[:] = x[0:3] + self._gm + white
+        roll, pitch, yaw = (x[3:6] + self._delta).tolist()
+        self.rpy_master[:] = (wrap_angle(roll), pitch, wrap_angle(yaw))
+        lat, lon, hgt = x[6:9].tolist()
+        self.lat_master = lat
+        self.lon_master = wrap_angle(lon)
+        self.h_master = hgt
 
     def step(self, t: float, h: float) -> None:
         t_end = t + h
         self._buffer.append((t_end, self._sample()))
         x = self._delayed(t_end - self.latency, 1e-9 * h)
-        z = self._rng.standard_normal(6)
+        if self._pos >= len(self._z):  # the same numbers as one draw of 6 per step
+            self._z = self._rng.standard_normal((AHEAD_STEPS, 6))
+            self._pos = 0
+        z = self._z[self._pos]
+        self._pos += 1
         if self.velocity_gm_sigma > 0.0:
             x_h = h / self.velocity_gm_tau
             gain = self.velocity_gm_sigma * math.sqrt(-math.expm1(-2.0 * x_h))
             self._gm = math.exp(-x_h) * self._gm + gain * z[:3]
         self._publish(x, self.velocity_noise_std * z[3:])
+
+
+#: Steps of random numbers drawn ahead (one call instead of one per step).
+AHEAD_STEPS = 64
