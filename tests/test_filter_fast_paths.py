@@ -15,9 +15,27 @@ import math
 import numpy as np
 import pytest
 
-from cosim.alignment.nav import Mechanisation, Strapdown
-from cosim.alignment.transfer_model import master_rate, relative_rotvecs
-from models.conventions import cross, dcm_to_rotvec, euler_to_dcm, rotvec_to_dcm, rotvec_to_dcm_3
+from cosim.alignment.nav import Mechanisation, Strapdown, euler_rate_matrix
+from cosim.alignment.transfer_model import (
+    PeriodSums,
+    StateLayout,
+    master_rate,
+    propagate,
+    relative_rotvecs,
+)
+from cosim.estimation import MerweScaledSigmaPoints, UnscentedKalmanFilter
+from cosim.estimation.checks import EstimatorTypeError
+from cosim.estimation.linalg import float_array
+from models.constants import OMEGA_IE
+from models.conventions import (
+    cross,
+    dcm_to_euler,
+    dcm_to_rotvec,
+    euler_to_dcm,
+    rotvec_to_dcm,
+    rotvec_to_dcm_3,
+)
+from models.earth import R_M, R_N
 
 
 # ----------------------------------------------------------------------------- references
@@ -124,3 +142,108 @@ def test_master_rate_equals_the_array_difference(k: int) -> None:
     else:
         want = -rho[0] / h
     np.testing.assert_array_equal(got, want)
+
+
+def _array_propagate(x, sums, layout):
+    """The error model over one period as it was written before (stacks, broadcast crosses)."""
+    x = np.asarray(x, dtype=float)
+    T = sums.T
+    out = np.empty_like(x)
+    dl, dV, att = x[..., layout.dl], x[..., layout.dv], x[..., layout.att]
+    nab, eps = x[..., layout.nabla], x[..., layout.eps]
+    if layout.flexure:
+        xi = x[..., layout.xi]
+        dv0 = dV - xi @ sums.m0.T
+    else:
+        dv0 = dV
+    lat_h = sums.lat
+    rm = float(R_M(lat_h)) + sums.height
+    rn = float(R_N(lat_h)) + sums.height
+    cl, sl, tl = math.cos(lat_h), math.sin(lat_h), math.tan(lat_h)
+    lat_t = lat_h - dl
+    zero = np.zeros_like(dl)
+    d_wie = OMEGA_IE * np.stack([cl - np.cos(lat_t), zero, -(sl - np.sin(lat_t))], axis=-1)
+    v_mean_e = sums.v_int[1] / T
+    d_wen = np.stack(
+        [
+            dv0[..., 1] / rn,
+            -dv0[..., 0] / rm,
+            -dv0[..., 1] * tl / rn - v_mean_e * dl / (rn * cl * cl),
+        ],
+        axis=-1,
+    )
+    d_win = d_wie + d_wen
+    E0 = euler_to_dcm(att)
+    rot = (
+        eps @ sums.c_int.T + (E0 @ sums.w_in) - sums.w_in - (E0 @ (d_win[..., :, None] * T))[..., 0]
+    )
+    E1 = rotvec_to_dcm(rot) @ E0
+    EbT = 0.5 * np.swapaxes(E0 + E1, -1, -2)
+    dv1 = (
+        dv0
+        + sums.dv_f
+        - EbT @ sums.dv_f
+        + (EbT @ (nab @ sums.c_int.T)[..., :, None])[..., 0]
+        - cross(np.broadcast_to(sums.cor, dv0.shape), dv0)
+        - cross(2.0 * d_wie + d_wen, np.broadcast_to(sums.v_int, dv0.shape))
+    )
+    out[..., layout.dl] = dl + 0.5 * (dv0[..., 0] + dv1[..., 0]) * T / rm
+    out[..., layout.att] = dcm_to_euler(E1)
+    out[..., layout.nabla] = nab
+    out[..., layout.eps] = eps
+    if layout.flexure:
+        xi1 = xi @ sums.phi_flex.T
+        out[..., layout.xi] = xi1
+        out[..., layout.dv] = dv1 + xi1 @ sums.m1.T
+    else:
+        out[..., layout.dv] = dv1
+    return out
+
+
+@pytest.mark.parametrize("flexure", [True, False])
+def test_propagate_equals_the_stacked_formulas(flexure: bool) -> None:
+    rng = np.random.default_rng(3)
+    layout = StateLayout(flexure)
+    c = euler_to_dcm([0.1, -0.05, 0.7])
+    m = rng.normal(0.0, 1.0, (3, 6))
+    sums = PeriodSums.constant(
+        0.5, [0.3, -0.2, -9.8], c, [1.0, 2.0, 0.1], 0.52, 3.0, m, np.eye(6) * 0.999
+    )
+    sums.m1 = m + 0.01  # the two ends of the period differ
+    for shape in [(layout.n,), (39, layout.n), (6, 39, layout.n)]:
+        x = rng.normal(0.0, 1e-3, shape)
+        x[..., layout.heading] = rng.uniform(-math.pi, math.pi, shape[:-1])
+        np.testing.assert_array_equal(propagate(x, sums, layout), _array_propagate(x, sums, layout))
+
+
+def test_single_euler_rate_matrix_equals_the_batched_one() -> None:
+    rpy = np.random.default_rng(4).normal(0.0, 2.0, (500, 3))
+    batched = euler_rate_matrix(rpy)
+    for i in range(len(rpy)):
+        np.testing.assert_array_equal(euler_rate_matrix(rpy[i]), batched[i])
+
+
+def test_float_array_copies_only_what_it_must() -> None:
+    a = np.arange(12.0).reshape(3, 4)
+    assert float_array(a, "a") is a
+    view = a[:, 1:3]  # strided: copied, C-contiguous, as as_float does
+    got = float_array(view, "view")
+    assert got is not view and got.flags.c_contiguous
+    np.testing.assert_array_equal(got, view)
+    assert float_array([1, 2], "b").dtype == np.float64
+    with pytest.raises(EstimatorTypeError, match="c: expected a real array"):
+        float_array("x", "c")
+
+
+def test_lazy_log_likelihood_is_the_update_density() -> None:
+    ukf = UnscentedKalmanFilter(
+        2, 1, lambda x, dt: x, lambda x: x[..., :1], MerweScaledSigmaPoints(2, 0.5)
+    )
+    assert ukf.log_likelihood is None
+    ukf.P = np.diag([2.0, 1.0])
+    ukf.update(np.array([0.7]), R=np.array([[0.5]]))
+    s = 2.0 + 0.5  # S = P_00 + R for a linear h: the KF value
+    want = -0.5 * 0.7**2 / s - 0.5 * math.log(2.0 * math.pi * s)
+    assert ukf.log_likelihood == pytest.approx(want, rel=1e-12)
+    ukf.update(None)
+    assert ukf.log_likelihood is None

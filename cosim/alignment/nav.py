@@ -177,6 +177,10 @@ def euler_rate_matrix(rpy: ArrayLike) -> FloatArray:
     ndarray, shape (..., 3, 3)
     """
     rpy = np.asarray(rpy, dtype=float)
+    if rpy.shape == (3,):  # one set of angles: scalar math (np.cos, np.sin = math.cos, sin)
+        _, p, y = rpy.tolist()
+        cp, sp, cy, sy = math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+        return np.array([[cy * cp, -sy, 0.0], [sy * cp, cy, 0.0], [-sp, 0.0, 1.0]])
     cp, sp = np.cos(rpy[..., 1]), np.sin(rpy[..., 1])
     cy, sy = np.cos(rpy[..., 2]), np.sin(rpy[..., 2])
     a = np.zeros(rpy.shape[:-1] + (3, 3))
