@@ -156,7 +156,14 @@ def axis_model(beta: float, q: float, h: float) -> tuple[np.ndarray, np.ndarray]
 
 
 class DeckFlexure(Block):
-    """Deck flexure angles: second-order Gauss-Markov per axis with exact discretisation."""
+    """Deck flexure angles: second-order Gauss-Markov per axis with exact discretisation.
+
+    Attributes
+    ----------
+    compiled : bool
+        True when this instance steps through the compiled kernel (set at initialisation,
+        :func:`models.native.library`), False on the numpy path.
+    """
 
     variables = (
         parameter(
@@ -196,6 +203,7 @@ class DeckFlexure(Block):
         self.dtheta_flex[:] = 0.0
         self.dtheta_dot_flex[:] = 0.0
         self._lib = native.library()
+        self.compiled = self._lib is not None
         if self._lib is not None:
             self._st = np.concatenate([self.theta, self.theta_dot])  # the state the step needs
             self._fixed = np.concatenate([self._two_beta, self._beta2])

@@ -236,7 +236,14 @@ def combine(basis: np.ndarray, rows: np.ndarray) -> np.ndarray:
 
 
 class LeverArm(Block):
-    """Slave IMU on a lever arm with deck flexure and mounting misalignment (seed 001)."""
+    """Slave IMU on a lever arm with deck flexure and mounting misalignment (seed 001).
+
+    Attributes
+    ----------
+    compiled : bool
+        True when this instance steps through the compiled kernel (set at initialisation,
+        :func:`models.native.library`), False on the numpy path.
+    """
 
     variables = (
         parameter("r0", (10.0, 10.0, 5.0), "m", "lever arm master -> slave, master body axes"),
@@ -278,6 +285,7 @@ class LeverArm(Block):
         )
         self._nodes: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray, int]] = {}
         self._lib = native.library()
+        self.compiled = self._lib is not None
         if self._lib is not None:
             self._initialize_native()
             return

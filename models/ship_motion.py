@@ -58,6 +58,9 @@ class ShipMotion(Block):
         Vectorised truth evaluations since initialisation (each covers up to
         :data:`AHEAD_STEPS` steps): about ``n / AHEAD_STEPS`` for ``n`` steps on the
         master's grid, one per step if the steps are irregular.
+    compiled : bool
+        True when this instance evaluates its look-ahead through the compiled kernel (a
+        moored ship with :func:`models.native.library`), False on the numpy path.
     """
 
     variables = (
@@ -113,6 +116,7 @@ class ShipMotion(Block):
                 ]
             )
             self._native = (lib, par)
+        self.compiled = self._native is not None
 
     def _truth(self, tt: np.ndarray) -> tuple[ImuTruth, np.ndarray, np.ndarray]:
         """Closed-form trajectory and inertial truth at the instants ``tt`` (shape (m,)).

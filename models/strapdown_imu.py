@@ -348,6 +348,9 @@ class StrapdownImu(Block):
     noise_batches : int
         Batches of input-free noise terms computed since initialisation: one per
         :data:`AHEAD_STEPS` steps at a constant macro step, more if the step changes.
+    compiled : bool
+        True when this instance steps through the compiled kernel (set at initialisation,
+        :func:`models.native.library`), False on the numpy path.
     """
 
     variables = (
@@ -425,6 +428,7 @@ class StrapdownImu(Block):
         for name in ("dtheta_meas_b", "dv_meas_b", "omega_meas_b", "f_meas_b"):
             getattr(self, name)[:] = 0.0
         self._lib = native.library()
+        self.compiled = self._lib is not None
         if self._lib is not None:
             self._native_step = self._lib.strapdown_imu_step
             self._io = native.Buffers(self, ("dtheta_b", "dv_b"), NATIVE_OUTPUTS)

@@ -49,16 +49,21 @@ def _assert_same(a: np.ndarray, b: np.ndarray, rtol: float = RTOL) -> None:
 def test_the_kernels_are_built_and_used() -> None:
     assert native.library_path().is_file()
     assert native.status().startswith("compiled kernels")
-    block = BLOCKS["LeverArm"]()
-    block.setup_experiment(0.0)
-    block.exit_initialization_mode()
-    assert block._lib is not None  # noqa: SLF001 (the instance took the compiled path)
+    for name in COMPILED:
+        block = BLOCKS[name]()
+        block.setup_experiment(0.0)
+        block.exit_initialization_mode()
+        assert block.compiled, name
 
 
 def test_the_switch_turns_them_off(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(native.ENV, "0")
     assert native.library() is None
     assert native.status() == f"numpy ({native.ENV}=0)"
+    block = BLOCKS["LeverArm"]()
+    block.setup_experiment(0.0)
+    block.exit_initialization_mode()
+    assert not block.compiled
 
 
 @pytest.mark.parametrize("name", COMPILED)
