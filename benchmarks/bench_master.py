@@ -12,7 +12,9 @@ Variants, interleaved in one process (best of :data:`REPEATS` rounds each, 10 ms
 - ``full``: every connection, every output recorded: the master's cost per macro step;
 - ``no recording``: the same without recording (``output.variables`` empty);
 - ``bare``: the same four blocks with no connection and no output read (blocks that
-  declare no variables): the loop itself (time grid, rates, one ``do_step`` per block).
+  declare no variables): the loop itself (time grid, rates, one ``do_step`` per block);
+- ``in place``: ``full`` with blocks that write their vector outputs into the arrays
+  they hold (views of the block's output buffer) instead of rebinding them.
 
 The blocks' own work (``publish``: their ``step`` called alone, rebinding the outputs)
 is timed too and left out. The row prints the master's cost per macro step (``full -
@@ -62,7 +64,7 @@ LINKS = [
 MODELS = {"ship": ShipMotion, "flexure": DeckFlexure, "lever": LeverArm, "imu": StrapdownImu}
 
 
-def zero_work(model: type, keep_variables: bool = True) -> type:
+def zero_work(model: type, keep_variables: bool = True, in_place: bool = False) -> type:
     """A block class with ``model``'s variables whose step only republishes its outputs.
 
     Parameters
@@ -71,6 +73,9 @@ def zero_work(model: type, keep_variables: bool = True) -> type:
         A :class:`models.block.Block` subclass (its ``variables`` are copied).
     keep_variables : bool
         False for a block that declares no variable at all (the ``bare`` variant).
+    in_place : bool
+        Publish vector outputs by writing into the output arrays (``self.y[:] = ...``)
+        instead of rebinding them.
 
     Returns
     -------
@@ -88,6 +93,13 @@ def zero_work(model: type, keep_variables: bool = True) -> type:
         for name, value in self._next:
             setattr(self, name, value)
 
+    def step_in_place(self: Block, t: float, h: float) -> None:
+        for name, value in self._next:
+            if type(value) is float:
+                setattr(self, name, value)
+            else:
+                getattr(self, name)[:] = value
+
     return type(
         f"ZeroWork{model.__name__}",
         (Block,),
@@ -96,12 +108,14 @@ def zero_work(model: type, keep_variables: bool = True) -> type:
             "__module__": __name__,
             "variables": variables,
             "initialize": initialize,
-            "step": step,
+            "step": step_in_place if in_place else step,
         },
     )
 
 
-def chain_master(connect: bool = True, record: bool = True, variables: bool = True) -> Master:
+def chain_master(
+    connect: bool = True, record: bool = True, variables: bool = True, in_place: bool = False
+) -> Master:
     """The zero-work chain's master.
 
     Parameters
@@ -112,13 +126,15 @@ def chain_master(connect: bool = True, record: bool = True, variables: bool = Tr
         Record every output (else nothing but the time).
     variables : bool
         Blocks with the chain models' variables (else blocks with none).
+    in_place : bool
+        Blocks that write their vector outputs in place (see :func:`zero_work`).
 
     Returns
     -------
     Master
         Gauss-Seidel, :data:`STEPS` macro steps of :data:`STEP`.
     """
-    blocks = {n: InProcessHost(n, zero_work(cls, variables)) for n, cls in MODELS.items()}
+    blocks = {n: InProcessHost(n, zero_work(cls, variables, in_place)) for n, cls in MODELS.items()}
     links: list[Connection] = []
     if connect and variables:
         for src, out, dst, inp in LINKS:
@@ -140,6 +156,7 @@ def bench() -> list[dict[str, Any]]:
         "full": chain_master(),
         "no recording": chain_master(record=False),
         "bare": chain_master(connect=False, record=False, variables=False),
+        "in place": chain_master(in_place=True),
     }
 
     def runner(master: Master) -> Any:
@@ -153,20 +170,25 @@ def bench() -> list[dict[str, Any]]:
 
         return go
 
-    blocks = [h.instance for h in masters["full"].system.blocks.values()]
+    def publisher(master: Master) -> Any:
+        blocks = [h.instance for h in master.system.blocks.values()]
 
-    def publish() -> None:  # the blocks' own work: rebinding their outputs
-        for _ in range(STEPS):
-            for block in blocks:
-                block.step(0.0, STEP)
+        def publish() -> None:  # the blocks' own work: publishing their outputs
+            for _ in range(STEPS):
+                for block in blocks:
+                    block.step(0.0, STEP)
+
+        return publish
 
     tasks = {k: runner(m) for k, m in masters.items()}
-    tasks["publish"] = publish
+    tasks["publish"] = publisher(masters["full"])
+    tasks["publish in place"] = publisher(masters["in place"])
     start = time.perf_counter()
     best = interleaved_best(tasks, repeats=REPEATS)
     wall = time.perf_counter() - start
     us = {k: 1e6 * v / STEPS for k, v in best.items()}
     own = us["full"] - us["publish"]  # the master's own cost
+    own_in_place = us["in place"] - us["publish in place"]
     exchange = us["no recording"] - us["bare"] - us["publish"]
     recording = us["full"] - us["no recording"]
     return [
@@ -181,7 +203,8 @@ def bench() -> list[dict[str, Any]]:
                 f"recording 81 columns {recording:.1f} us, loop and do_step calls "
                 f"{us['bare']:.1f} us (the blocks' own rebinding of their outputs, "
                 f"{us['publish']:.1f} us, left out); best of {REPEATS} interleaved runs of "
-                f"{STEPS} steps ({wall:.1f} s); {note}"
+                f"{STEPS} steps ({wall:.1f} s); with blocks that write their vector "
+                f"outputs in place {own_in_place:.1f} us; {note}"
             ),
         }
     ]

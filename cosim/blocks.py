@@ -663,10 +663,9 @@ class FmuHost(BlockHost):
     def real_writer(self, vrs: list[int]) -> Callable[[np.ndarray], None]:
         values = np.zeros(len(vrs))
         call = self._real_call("Set", vrs, values)
-        copyto = np.copyto
 
         def write(x: np.ndarray) -> None:
-            copyto(values, x)
+            values[...] = x
             call()
 
         return write

@@ -565,11 +565,10 @@ class Master:
         # -- macro steps ----------------------------------------------------------
         every = s.record_every
         source = values.copy() if jacobi else values  # Jacobi: the t_n snapshot
-        copyto = np.copyto
         steps = [(p, p[1].do_step) for p in plan]  # bound now: after any wrapping
         for n in range(n_steps):
             if jacobi:
-                copyto(source, values)
+                source[...] = values
             t_n, t_end = t0 + n * h, t0 + (n + 1) * h
             for (name, _host, k, in_idx, factor, put, read, out, listed, outs), do_step in steps:
                 if k == 1:

@@ -467,11 +467,11 @@ class Block(Fmi2Slave):
         key = tuple(vrs)
         write = self._writers.get(key)
         if write is None:
-            write = self._writer(key)
+            write = self._writer(key)[1]
             if len(self._writers) >= 64:
                 self._writers.clear()
             self._writers[key] = write
-        write(None, values)
+        write(values)
 
     def _get_each(self, vrs: Any) -> list[float]:
         """The values of ``vrs`` one segment after the other (for parts of vectors)."""
@@ -587,18 +587,15 @@ class Block(Fmi2Slave):
             ``write(x)`` with ``x`` float64 of shape (len(vrs),), one value per
             reference in the order of ``vrs``; valid for this instance.
         """
-        return functools.partial(self._writer(tuple(vrs)), raw=None)
+        return self._writer(tuple(vrs))[0]
 
-    def _writer(self, key: tuple[int, ...]) -> Callable[..., None]:
-        """``write(x, raw)`` for :meth:`real_writer` (``raw`` None: scalars from ``x``) and
-        :meth:`set_real` (``x`` None: made from ``raw`` when there are vectors)."""
+    def _writer(self, key: tuple[int, ...]) -> tuple[Callable[..., None], Callable[..., None]]:
+        """``(write(x), write_raw(values))``: :meth:`real_writer` (scalars as Python floats
+        from the float64 array ``x``) and :meth:`set_real` (scalars set to the objects in
+        ``values``, vectors from ``values`` as float64)."""
         if len(set(key)) != len(key):  # a reference given twice: in order
             set_each = self._set_each
-
-            def write_each(x: np.ndarray | None, raw: Any = None) -> None:
-                set_each(key, raw if raw is not None else x.tolist())
-
-            return write_each
+            return (lambda x: set_each(key, x.tolist())), (lambda raw: set_each(key, raw))
         vectors: list[tuple[str, int, int, int]] = []  # (attribute, lo, hi, position in x)
         scalars: list[tuple[str, int]] = []
         pos = 0
@@ -613,6 +610,7 @@ class Block(Fmi2Slave):
         # copies (buffer slice, x start, x stop) of consecutive runs, when every vector is
         # a view of the input buffer
         runs: list[list[int]] = []
+        whole = None  # the buffer slice that takes all of x (vectors only, one run)
         if all(name in views for name, *_r in vectors):
             offset = _offsets(self._in_buffer, views)
             for name, lo, hi, p in vectors:
@@ -623,31 +621,38 @@ class Block(Fmi2Slave):
                 else:
                     runs.append([b, b + hi - lo, p, p + hi - lo])
             copies = [(self._in_buffer[b0:b1], x0, x1) for b0, b1, x0, x1 in runs]
+            if len(copies) == 1 and not scalars:
+                whole = copies[0][0]
             names = sorted({name for name, *_r in vectors})
             vec_get = _getter(names)
             vec_views = tuple(views[n] for n in names)
         else:
             copies, vec_get, vec_views = [], None, ()
-        copyto, asarray = np.copyto, np.asarray
 
-        def write(x: np.ndarray | None, raw: Any = None) -> None:
-            if vectors:
-                if x is None:
-                    x = asarray(raw, dtype=float)
-                if vec_get is not None and all(map(is_, vec_get(self), vec_views)):
+        def put_vectors(x: np.ndarray) -> None:
+            if vec_get is not None and all(map(is_, vec_get(self), vec_views)):
+                if whole is not None:
+                    whole[...] = x
+                else:
                     for dst, x0, x1 in copies:
-                        copyto(dst, x[x0:x1])
-                else:  # a rebound input (or not an input): into the model's own array
-                    for name, lo, hi, p in vectors:
-                        getattr(self, name)[lo:hi] = x[p : p + hi - lo]
-            if raw is None:
-                for name, i in scalars:
-                    setattr(self, name, x.item(i))
-            else:
-                for name, i in scalars:
-                    setattr(self, name, raw[i])
+                        dst[...] = x[x0:x1]
+            else:  # a rebound input (or not an input): into the model's own array
+                for name, lo, hi, p in vectors:
+                    getattr(self, name)[lo:hi] = x[p : p + hi - lo]
 
-        return write
+        def write(x: np.ndarray) -> None:
+            if vectors:
+                put_vectors(x)
+            for name, i in scalars:
+                setattr(self, name, x.item(i))
+
+        def write_raw(raw: Any) -> None:
+            if vectors:
+                put_vectors(np.asarray(raw, dtype=float))
+            for name, i in scalars:
+                setattr(self, name, raw[i])
+
+        return write, write_raw
 
     def _accessors(self, var: Var, index: int) -> tuple[Any, Any]:
         name = var.name
@@ -757,12 +762,12 @@ def _run_reader(block: Block, vectors: list[tuple[str, int]], target: np.ndarray
         first = [offset[n] for n in names]
         if all(a + s == b for a, s, b in zip(first, sizes, first[1:], strict=False)):
             segment = block._out_buffer[first[0] : first[0] + sum(sizes)]
-    copyto, join = np.copyto, b"".join
+    join = b"".join
 
     def read(obj: Block) -> None:
         vals = get(obj)
         if segment is not None and all(map(is_, vals, views)):
-            copyto(target, segment)  # written in place: one slice
+            target[...] = segment  # written in place: one slice
             return
         try:  # float64 arrays of the declared lengths: their bytes, joined
             if tuple(map(_DTYPE, vals)) == dtypes and tuple(map(len, vals)) == sizes:
