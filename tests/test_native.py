@@ -25,7 +25,8 @@ import models
 from benchmarks.monolithic import CHAIN_SCENARIO
 from cosim.blocks import InProcessHost
 from cosim.interop.packaging import build_fmu
-from cosim.interop.references import MAX_STEPS, SEED, drive
+from cosim.interop.references import MAX_STEPS, REFERENCE_DIR, SEED, drive
+from cosim.results import RunResult
 from cosim.scenario import build_master
 from models import native
 
@@ -75,6 +76,15 @@ def test_compiled_equals_numpy_on_the_reference_drive(
     monkeypatch.setenv(native.ENV, "0")
     slow = _reference_drive(name)
     _assert_same(fast, slow)
+
+
+@pytest.mark.parametrize("name", COMPILED)
+def test_the_numpy_path_equals_the_reference_file(
+    name: str, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """tests/test_fmus.py checks the default (compiled) path against the same file."""
+    monkeypatch.setenv(native.ENV, "0")
+    _assert_same(_reference_drive(name), RunResult.load(REFERENCE_DIR / f"{name}.csv").data)
 
 
 def test_compiled_equals_numpy_over_the_transfer_chain(monkeypatch: pytest.MonkeyPatch) -> None:
