@@ -71,6 +71,8 @@ __all__ = [
 
 #: Modules the forkserver imports once, so that forked workers start without imports.
 PRELOAD = ["cosim.verify.workers", "cosim.verify.pool", "cosim.alignment", "models"]
+#: Imported last by the forkserver: the built-in blocks' identities, cached for every worker.
+PRELOAD_LAST = "cosim.verify.preload"
 #: A run whose worker process dies this many times is recorded as crashed.
 CRASH_ATTEMPTS = 2
 #: Worker processes that may die before they are ready (building the blocks) in a row.
@@ -88,8 +90,9 @@ def pool_context() -> multiprocessing.context.BaseContext:
     The forkserver starts with the first pool of this process (:func:`start_forkserver`)
     and imports the simulation code once: :data:`PRELOAD`, every module of ``models`` and
     ``cosim.alignment`` (the built-in blocks) and whatever this process has loaded from
-    ``cosim`` and ``models`` by then; every worker is forked from it, with no imports of
-    its own (a block from another package is imported by each worker).
+    ``cosim`` and ``models`` by then, then :mod:`cosim.verify.preload` (the built-in
+    blocks' identities); every worker is forked from it, with no imports of its own (a
+    block from another package is imported by each worker).
 
     Returns
     -------
@@ -98,7 +101,8 @@ def pool_context() -> multiprocessing.context.BaseContext:
     if "forkserver" in multiprocessing.get_all_start_methods():
         ctx = multiprocessing.get_context("forkserver")
         loaded = {m for m in sys.modules if m.split(".")[0] in ("cosim", "models")}
-        ctx.set_forkserver_preload([*PRELOAD, *sorted((loaded | _builtin_blocks()) - set(PRELOAD))])
+        rest = sorted((loaded | _builtin_blocks()) - {*PRELOAD, PRELOAD_LAST})
+        ctx.set_forkserver_preload([*PRELOAD, *rest, PRELOAD_LAST])
         return ctx
     return multiprocessing.get_context("spawn")
 
