@@ -41,11 +41,15 @@ demo: fmus
 		--report out/demo/verification --no-progress; test $$? -le 2
 	@echo "demo: out/demo/results.{csv,json,png} and out/demo/verification/report.html"
 
+# The suite runs on every core (pytest-xdist, tests handed out as workers free up);
+# TEST_JOBS=0 runs it in this one process.
+TEST_JOBS ?= auto
+
 test: fmus
-	$(VENV)/bin/pytest
+	$(VENV)/bin/pytest -n $(TEST_JOBS) --dist worksteal
 
 test-slow: fmus
-	$(VENV)/bin/pytest -m slow
+	$(VENV)/bin/pytest -n $(TEST_JOBS) --dist worksteal -m slow
 
 bench: fmus
 	$(PY) -m benchmarks
