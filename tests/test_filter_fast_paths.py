@@ -55,7 +55,8 @@ def _array_two_sample_step(nav: Strapdown, state: dict, dtheta, dv, h: float) ->
     v = state["v_n"]
     v_ref = 1.5 * v - 0.5 * state["v_prev"] if o.midpoint_velocity else v
     if o.transport_rate:
-        w_en = np.array([v_ref[1] / nav._rn, -v_ref[0] / nav._rm, -v_ref[1] * nav._tan / nav._rn])
+        rm, rn, tan = state["rm"], state["rn"], state["tan"]
+        w_en = np.array([v_ref[1] / rn, -v_ref[0] / rm, -v_ref[1] * tan / rn])
         w_in = nav.w_ie + w_en
         cor = 2.0 * nav.w_ie + w_en
     else:
@@ -71,7 +72,7 @@ def _array_two_sample_step(nav: Strapdown, state: dict, dtheta, dv, h: float) ->
         k = cor[2] * h
         v_new = np.array([v[0] + dv_n[0] + k * v_ref[1], v[1] + dv_n[1] - k * v_ref[0], 0.0])
     if o.transport_rate:
-        state["lat"] += v_ref[0] * h / nav._rm
+        state["lat"] += v_ref[0] * h / state["rm"]
     state.update(C_prev=c0, phi=phi, dv_n=dv_n, w_in=w_in, cor=cor, v_prev=v, v_n=v_new)
     state["C_s_n"] = nav_rot @ c0 @ rotvec_to_dcm_3(phi)
 
@@ -102,6 +103,10 @@ def test_scalar_two_sample_step_equals_the_array_formulas(
         "prev": None,
         "gyro_bias": nav.gyro_bias,
         "accel_bias": nav.accel_bias,
+        # the latitude constants as Strapdown.refresh makes them (at construction here)
+        "rm": float(R_M(0.52)) + 7.0,
+        "rn": float(R_N(0.52)) + 7.0,
+        "tan": math.tan(0.52),
     }
     h = 0.05
     for _ in range(40):
