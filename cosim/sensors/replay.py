@@ -41,7 +41,7 @@ import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Variability
 from pythonfmu.variables import String
 
-from models.block import Block, input_, output, parameter
+from models.block import Block, input_, output, parameter, same_step
 
 #: Folder of the log inside an FMU's resources, and its files.
 RESOURCE_DIR = "imu_log"
@@ -173,7 +173,7 @@ class LogReplay(Block):
         ReplayError
             When ``h f_s`` is not a whole number (within :data:`RATIO_TOL`) or is < 1.
         """
-        if self._m_for is not None and self._m_for[0] == h:
+        if self._m_for is not None and same_step(h, self._m_for[0]):
             return self._m_for[1]
         ratio = h * self._rate
         m = round(ratio)
