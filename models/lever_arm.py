@@ -172,7 +172,7 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (...)
     """
-    return a[..., 0] * b[..., 0] + a[..., 1] * b[..., 1] + a[..., 2] * b[..., 2]
+    return _accumulate(a * b, axis=-1)[..., -1]  # sequential: ((p0 + p1) + p2)
 
 
 def vecmat(v: np.ndarray, m: np.ndarray) -> np.ndarray:
@@ -194,7 +194,7 @@ def vecmat(v: np.ndarray, m: np.ndarray) -> np.ndarray:
         ``sum_i v_i m_ij``; with ``v`` of shape (3, 3) and ``m`` (3, 3), the product of
         two matrices.
     """
-    return v[..., 0:1] * m[..., 0, :] + v[..., 1:2] * m[..., 1, :] + v[..., 2:3] * m[..., 2, :]
+    return _accumulate(v[..., :, None] * m, axis=-2)[..., -1, :]  # sequential over i
 
 
 def matvec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -212,7 +212,7 @@ def matvec(m: np.ndarray, v: np.ndarray) -> np.ndarray:
     ndarray, shape (..., 3)
         ``sum_j m_ij v_j``.
     """
-    return m[..., :, 0] * v[..., 0:1] + m[..., :, 1] * v[..., 1:2] + m[..., :, 2] * v[..., 2:3]
+    return _accumulate(m * v[..., None, :], axis=-1)[..., -1]  # sequential over j
 
 
 def combine(basis: np.ndarray, rows: np.ndarray) -> np.ndarray:
@@ -229,10 +229,7 @@ def combine(basis: np.ndarray, rows: np.ndarray) -> np.ndarray:
     -------
     ndarray, shape (m, 3)
     """
-    out = basis[:, 0:1] * rows[0]
-    for j in range(1, len(rows)):
-        out = out + basis[:, j : j + 1] * rows[j]
-    return out
+    return _accumulate(basis[:, :, None] * rows[None, :, :], axis=1)[:, -1]  # sequential
 
 
 class LeverArm(Block):
@@ -425,7 +422,7 @@ class LeverArm(Block):
             th = thd = thdd = np.zeros_like(w)
         w_s, f_s, c_d_b = self._slave(w, wd, f, th, thd, thdd)
         # Simpson sums in node order (cumsum is sequential, as the compiled step)
-        sums = h * np.cumsum(wts[:, None] * np.hstack([w_s, f_s]), axis=0)[-1]
+        sums = h * _accumulate(wts[:, None] * np.hstack([w_s, f_s]), axis=0)[-1]
         self.dtheta_s = sums[0:3]
         self.dv_s = sums[3:6]
         # Step end: the path's end node equals the inputs except theta'', which is the
@@ -438,6 +435,10 @@ class LeverArm(Block):
         f_end = f_end + vecmat(vecmat(matvec(self._R0, d_acc), c_d_b[-1]), self._c_s_d)
         self._finish(w_s[-1], f_end, th1, thd1, c_d_b[-1])
 
+
+#: Running sums in element order (``np.cumsum`` without its wrapper): the fixed summation
+#: order that the compiled kernels repeat.
+_accumulate = np.add.accumulate
 
 #: The compiled step's vector inputs and outputs, in its layout (declaration order).
 NATIVE_INPUTS = (
