@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 import zipfile
@@ -185,3 +186,36 @@ def test_an_fmu_without_the_kernels_gives_the_compiled_numbers(
     assert rows.shape == (n_steps + 1, len(child["names"]))
     for j, field in enumerate(child["names"]):
         np.testing.assert_allclose(rows[:, j], accelerated[field], rtol=RTOL, atol=1e-300)
+
+
+def test_without_a_compiler_the_models_run_numpy(tmp_path: Path) -> None:
+    """A copy of models/ with no library, in a process that finds no C compiler."""
+    shutil.copytree(
+        Path(models.__file__).parent,
+        tmp_path / "models",
+        ignore=shutil.ignore_patterns("build", "__pycache__"),
+    )
+    script = (
+        "import sys; sys.path.insert(0, sys.argv[1])\n"
+        "import models, models.native as n\n"
+        "from models.lever_arm import LeverArm\n"
+        "b = LeverArm(); b.setup_experiment(0.0); b.exit_initialization_mode()\n"
+        "b.step(0.0, 0.01)\n"
+        "print(models.__file__); print(b.compiled); print(n.status())\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k not in ("CC", "PYTHONPATH", native.ENV)}
+    env["PATH"] = str(tmp_path / "no-compiler-here")
+    proc = subprocess.run(
+        [sys.executable, "-c", script, str(tmp_path)],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert proc.returncode == 0, proc.stderr
+    where, compiled, status = proc.stdout.strip().splitlines()[-3:]
+    assert Path(where).parent == tmp_path / "models"
+    assert compiled == "False"
+    assert status.startswith("numpy (compiled kernels unavailable: no C compiler"), status
+    assert not (tmp_path / "models" / "native" / "build").exists()

@@ -1,6 +1,15 @@
-"""``python -m models.native``: build the compiled kernels (``make setup`` / ``make fmus``)."""
+"""``python -m models.native``: build the compiled kernels (``make setup`` / ``make fmus``).
+
+Without a C compiler (or when the build fails) it says so and exits 0: the models then
+run their numpy code, with the same numbers, only slower.
+"""
+
+import sys
 
 from models.native import build, status
 
 if __name__ == "__main__":
-    print(f"built {build()}; models use: {status()}")
+    try:
+        print(f"built {build()}; models use: {status()}")
+    except RuntimeError as exc:
+        print(f"models/native: {exc}\nmodels use: {status()}", file=sys.stderr)
