@@ -212,11 +212,12 @@ class ShipMotion(Block):
         if self._native is not None:  # the moored ship, compiled: the same rows
             rows = np.empty((size, 21))
             lib, par = self._native
+            lengths = np.ascontiguousarray(steps[:, 0])  # kept alive over the call
             lib.ship_truth_steps(
                 native.pointer(par),
                 native.pointer(tt),
                 native.pointer(w),
-                native.pointer(np.ascontiguousarray(steps[:, 0])),
+                native.pointer(lengths),
                 size,
                 m,
                 native.pointer(rows),
