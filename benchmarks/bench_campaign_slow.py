@@ -53,6 +53,7 @@ def measure(runs: int = RUNS) -> dict[str, Any]:
     per_run = (got["wall"] - fixed) / runs
     total = got["wall"] if runs == RUNS else fixed + per_run * RUNS
     measured = runs == RUNS
+    free = fixed + got["cpu"] / runs * RUNS / 2  # the 1000 runs' CPU time on two free cores
     return {
         **row,
         "ratio": total,
@@ -61,7 +62,8 @@ def measure(runs: int = RUNS) -> dict[str, Any]:
             f"{'measured' if measured else f'extrapolated from {runs} runs'}: "
             f"{got['wall']:.1f} s for {runs} runs ({per_run:.3f} s of wall time per run, "
             f"{got['cpu'] / runs:.2f} s of CPU per run), workers ready after "
-            f"{fixed:.2f} s, cores obtained {got['cores']:.2f} (2.00 = both cores free); "
+            f"{fixed:.2f} s, cores obtained {got['cores']:.2f} (2.00 = both cores free; on "
+            f"two free cores at this CPU time per run: {free:.0f} s); "
             f"forkserver start {forkserver:.1f} s (outside the timing); {before} before, "
             f"{load_note()} after"
         ),
