@@ -311,11 +311,11 @@ class TransferAlignment(Block):
             self._P_att = P[lay.att, lay.att].copy()
             self._P_att_inv = np.linalg.inv(self._P_att)
             self._att_T = None  # the shown attitude error's E^T, made when stage 1 needs it
-            self.accel_bias_sigma = np.sqrt(np.diag(P[lay.nabla, lay.nabla]))
-            self.gyro_drift_sigma = np.sqrt(np.diag(P[lay.eps, lay.eps]))
+            self.accel_bias_sigma = np.sqrt(P[lay.nabla, lay.nabla].diagonal())
+            self.gyro_drift_sigma = np.sqrt(P[lay.eps, lay.eps].diagonal())
             if lay.flexure:
                 self.flex = x_show[7:10] / ARCMIN
-                self.flex_sigma = np.sqrt(np.diag(P[7:10, 7:10])) / ARCMIN
+                self.flex_sigma = np.sqrt(P[7:10, 7:10].diagonal()) / ARCMIN
             else:
                 self.flex = np.zeros(3)
                 self.flex_sigma = np.zeros(3)
