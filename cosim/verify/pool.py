@@ -279,10 +279,11 @@ class _Process:
 class WorkerPool:
     """Local worker processes kept across the runs of a campaign and across campaigns.
 
-    Use it as a context manager (or call :meth:`close`); ``workers == 1`` runs the jobs
-    in this process, keeping the built blocks between calls as well, and so does a call
-    with a single job while the pool has no process. Making a pool of more than one
-    starts this process's forkserver (:func:`start_forkserver`).
+    Use it as a context manager (or call :meth:`close`). ``workers == 1`` runs the jobs
+    in this process, keeping the built blocks between calls as well; a call with a single
+    job while the pool has no process runs it in this process too (without keeping its
+    blocks). Making a pool of more than one starts this process's forkserver
+    (:func:`start_forkserver`).
 
     Parameters
     ----------
