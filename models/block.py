@@ -262,10 +262,11 @@ class Block(Fmi2Slave):
         self._writers: dict[tuple[int, ...], Callable[..., None]] = {}
         for var in self.variables:
             self._declare(var)
-        self._in_buffer, self._in_views = self._buffer("input")
-        self._out_buffer, self._out_views = self._buffer("output")
+        # per causality: the buffer, attribute -> its view, attribute -> where it starts
+        self._in_buffer, self._in_views, self._in_offsets = self._buffer("input")
+        self._out_buffer, self._out_views, self._out_offsets = self._buffer("output")
 
-    def _buffer(self, causality: str) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    def _buffer(self, causality: str) -> tuple[np.ndarray, dict[str, Any], dict[str, int]]:
         """One float64 buffer for the vector Real variables of a causality; each attribute
         becomes a view of its part (start values copied in)."""
         vectors = [
@@ -275,14 +276,13 @@ class Block(Fmi2Slave):
         ]
         buffer = np.zeros(sum(v.size for v in vectors))
         views: dict[str, np.ndarray] = {}
-        pos = 0
+        offsets: dict[str, int] = {}
         for v in vectors:
-            view = buffer[pos : pos + v.size]
+            offsets[v.name] = pos = sum(w.size for w in views.values())
+            views[v.name] = view = buffer[pos : pos + v.size]
             view[:] = getattr(self, v.name)
             setattr(self, v.name, view)
-            views[v.name] = view
-            pos += v.size
-        return buffer, views
+        return buffer, views, offsets
 
     # ----------------------------------------------------------------- hooks
     def initialize(self) -> None:
@@ -500,9 +500,6 @@ class Block(Fmi2Slave):
                 pos += hi - lo
 
     # ------------------------------------------- Real access (arrays, for the master)
-    def _sizes(self) -> dict[str, int]:
-        return {v.name: v.size for v in self.variables}
-
     def real_reader(self, vrs: Any, out: np.ndarray) -> Callable[[], None]:
         """A function of no argument that writes the current values of ``vrs`` into ``out``.
 
@@ -533,7 +530,7 @@ class Block(Fmi2Slave):
                 f"out must be C-contiguous float64 of shape ({len(vrs)},), got "
                 f"{out.dtype} {out.shape}"
             )
-        sizes = self._sizes()
+        sizes = {v.name: v.size for v in self.variables}
         groups: list[list[tuple[str, int]]] = []  # runs of whole vectors (name, size)
         starts: list[int] = []
         scalars: list[tuple[str, int]] = []
@@ -550,16 +547,14 @@ class Block(Fmi2Slave):
                 starts.append(pos)
             groups[-1].append((name, hi))
             pos += hi
-        runs = [
-            _run_reader(self, g, out[p : p + sum(n for _v, n in g)])
-            for g, p in zip(groups, starts, strict=True)
-        ]
+        targets = [out[p : p + sum(n for _v, n in g)] for g, p in zip(groups, starts, strict=True)]
+        vectors = _vectors_reader(self, groups, targets) if groups else None
         sc_out: Any = _positions(out, [p for _n, p in scalars])
         sc_get = _getter([n for n, _p in scalars])
 
         def read() -> None:
-            for run in runs:
-                run(self)
+            if vectors is not None:
+                vectors(self)
             if sc_get is not None:
                 vals = sc_get(self)
                 try:
@@ -612,7 +607,7 @@ class Block(Fmi2Slave):
         runs: list[list[int]] = []
         whole = None  # the buffer slice that takes all of x (vectors only, one run)
         if all(name in views for name, *_r in vectors):
-            offset = _offsets(self._in_buffer, views)
+            offset = self._in_offsets
             for name, lo, hi, p in vectors:
                 b = offset[name] + lo
                 if runs and runs[-1][1] == b and runs[-1][3] == p:
@@ -707,14 +702,6 @@ def _read_any(get: Callable[[list[int]], list[float]], vrs: list[int], out: np.n
     out[:] = get(vrs)
 
 
-def _offsets(buffer: np.ndarray, views: dict[str, np.ndarray]) -> dict[str, int]:
-    """Where each view of ``buffer`` starts in it (elements)."""
-    base = buffer.__array_interface__["data"][0]
-    return {
-        n: (v.__array_interface__["data"][0] - base) // buffer.itemsize for n, v in views.items()
-    }
-
-
 def _getter(names: list[str]) -> Callable[[Any], tuple[Any, ...]] | None:
     """``obj -> tuple of attributes`` (always a tuple), None for no names."""
     if not names:
@@ -747,39 +734,63 @@ class _Scatter:
         self.out[self.index] = values
 
 
-def _run_reader(block: Block, vectors: list[tuple[str, int]], target: np.ndarray) -> Any:
-    """For :meth:`Block.real_reader`: a function of the block that copies consecutive whole
-    vectors into ``target`` (contiguous, their total length)."""
-    names = [n for n, _s in vectors]
-    sizes = tuple(s for _n, s in vectors)
+def _vectors_reader(
+    block: Block, groups: list[list[tuple[str, int]]], targets: list[np.ndarray]
+) -> Callable[[Block], None]:
+    """For :meth:`Block.real_reader`: a function of the block that copies its whole vectors,
+    group by group (consecutive in ``out``), into the targets (contiguous parts of ``out``,
+    one per group). One attribute look-up and one type check for all of them."""
+    names = [n for g in groups for n, _s in g]
+    sizes = tuple(s for g in groups for _n, s in g)
     get = _getter(names)
-    target_bytes = memoryview(target).cast("B")
     dtypes = (np.dtype(np.float64),) * len(names)
     views = tuple(block._out_views.get(n) for n in names)
-    segment = None
+    bounds, i = [], 0
+    for g in groups:
+        bounds.append((i, i + len(g)))
+        i += len(g)
+    # in place: the buffer slice of each group, when every vector is a view of the buffer
+    # and each group's views are back to back in it
+    segments: list[np.ndarray] | None = None
     if all(v is not None for v in views):
-        offset = _offsets(block._out_buffer, block._out_views)
-        first = [offset[n] for n in names]
-        if all(a + s == b for a, s, b in zip(first, sizes, first[1:], strict=False)):
-            segment = block._out_buffer[first[0] : first[0] + sum(sizes)]
+        offset = block._out_offsets
+        segments = []
+        for i0, i1 in bounds:
+            first = [offset[n] for n in names[i0:i1]]
+            ends = [a + s for a, s in zip(first, sizes[i0:i1], strict=True)]
+            if any(e != b for e, b in zip(ends, first[1:], strict=False)):
+                segments = None
+                break
+            segments.append(block._out_buffer[first[0] : ends[-1]])
+    pairs = list(zip(targets, segments, strict=True)) if segments is not None else []
+    byte_runs = [
+        (memoryview(t).cast("B"), i0, i1) for t, (i0, i1) in zip(targets, bounds, strict=True)
+    ]
+    single = byte_runs[0][0] if len(byte_runs) == 1 else None
     join = b"".join
 
     def read(obj: Block) -> None:
         vals = get(obj)
-        if segment is not None and all(map(is_, vals, views)):
-            target[...] = segment  # written in place: one slice
+        if pairs and all(map(is_, vals, views)):
+            for target, segment in pairs:  # written in place: one slice per group
+                target[...] = segment
             return
         try:  # float64 arrays of the declared lengths: their bytes, joined
             if tuple(map(_DTYPE, vals)) == dtypes and tuple(map(len, vals)) == sizes:
-                target_bytes[:] = join(vals)
+                if single is not None:
+                    single[:] = join(vals)
+                else:
+                    for target_bytes, i0, i1 in byte_runs:
+                        target_bytes[:] = join(vals[i0:i1])
                 return
         except (AttributeError, TypeError):  # not arrays, or not C-contiguous
             pass
-        target[:] = [
-            x
-            for size, v in zip(sizes, vals, strict=True)
-            for x in np.asarray(v, dtype=float)[0:size].tolist()
-        ]
+        for target, (i0, i1) in zip(targets, bounds, strict=True):
+            target[:] = [
+                x
+                for size, v in zip(sizes[i0:i1], vals[i0:i1], strict=True)
+                for x in np.asarray(v, dtype=float)[0:size].tolist()
+            ]
 
     return read
 
