@@ -147,6 +147,66 @@ def slave_kinematics(
         Slave rate w.r.t. inertial [rad/s] and specific force [m/s2], slave axes.
     c_d_b : ndarray, shape (m, 3, 3), or None for a rigid deck
     """
+    r = r0 + th @ r0_t
+    # omega x (omega x r) = omega (omega . r) - r |omega|^2
+    wr = (w * r).sum(axis=-1, keepdims=True)
+    ww = (w * w).sum(axis=-1, keepdims=True)
+    f_p = f + cross(wd, r) + w * wr - r * ww
+    if not flexure:
+        return w @ c_s_d, f_p @ c_s_d, None
+    f_p = f_p + 2.0 * cross(w, thd @ r0_t) + thdd @ r0_t
+    c_d_b, j_r = rotvec_to_dcm_and_jacobian(th)
+    # [w, f_p] @ C_d_b in one batched product: rows (m, 2, 3)
+    wf = np.stack([w, f_p], axis=1) @ c_d_b
+    w_d = wf[:, 0, :] + (j_r @ thd[:, :, None])[:, :, 0]
+    return w_d @ c_s_d, wf[:, 1, :] @ c_s_d, c_d_b
+
+
+def slave_kinematics_ordered(
+    w: np.ndarray,
+    wd: np.ndarray,
+    f: np.ndarray,
+    th: np.ndarray,
+    thd: np.ndarray,
+    thdd: np.ndarray,
+    r0: np.ndarray,
+    r0_t: np.ndarray,
+    c_s_d: np.ndarray,
+    flexure: bool,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """:func:`slave_kinematics` summed in a fixed order: the compiled step's twin.
+
+    The same equations with every sum of products written in index order (:func:`vecmat`,
+    :func:`matvec`, :func:`dot`: no BLAS, no FMA), the order of ``models/native/kernels.c``,
+    so that the block's numpy path and its compiled step agree bit for bit. Meant for one
+    step's nodes (the block); :func:`slave_kinematics` is the faster form for long stacks.
+
+    The kinematics of the module docstring: ``r = r0 + R_0 theta``,
+    ``f_p = f + omega' x r + omega x (omega x r) [+ 2 omega x R_0 theta' + R_0 theta'']``,
+    resolved through ``C_d_b = exp([theta x])`` and the mounting ``C_s_d``.
+
+    Parameters
+    ----------
+    w, wd, f : ndarray, shape (m, 3)
+        Master rate [rad/s], angular acceleration [rad/s2] and specific force [m/s2],
+        master body axes.
+    th, thd, thdd : ndarray, shape (m, 3)
+        Flexure angle [rad] and its first [rad/s] and second [rad/s2] derivatives.
+    r0 : ndarray, shape (3,)
+        Lever arm master -> slave, master body axes [m].
+    r0_t : ndarray, shape (3, 3)
+        ``R_0.T`` (:func:`r0_matrix` transposed) [m/rad].
+    c_s_d : ndarray, shape (3, 3)
+        Slave mounting ``C_s_d``.
+    flexure : bool
+        False for a rigid deck: the flexure terms (and ``C_d_b``) are left out.
+
+    Returns
+    -------
+    w_s, f_s : ndarray, shape (m, 3)
+        Slave rate w.r.t. inertial [rad/s] and specific force [m/s2], slave axes.
+    c_d_b : ndarray, shape (m, 3, 3), or None for a rigid deck
+    """
     r = r0 + vecmat(th, r0_t)
     # omega x (omega x r) = omega (omega . r) - r |omega|^2
     wr = dot(w, r)[..., None]
@@ -274,7 +334,7 @@ class LeverArm(Block):
         self._c_s_d = euler_to_dcm(np.asarray(self.mount_rpy, dtype=float))
         # the slave kinematics of this block: (w, wd, f, th, thd, thdd) -> (w_s, f_s, C_d_b)
         self._slave = functools.partial(
-            slave_kinematics,
+            slave_kinematics_ordered,
             r0=self._r0,
             r0_t=self._R0T,
             c_s_d=self._c_s_d,
