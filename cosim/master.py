@@ -22,6 +22,14 @@ The coupling rule (README, "The coupling rule", has the diagram):
   sources' start values (the snapshot before anyone initialised), as libcosim does.
 - A block error or a non-finite output stops the run with a :class:`SimulationError`
   naming block, variable or call and time; the result recorded so far is attached.
+
+The exchange: each block's Real outputs are one contiguous part of a float64 value table.
+At the start of a run every host binds a reader that fills its part and a writer that
+takes its inputs from one array (:meth:`BlockHost.real_reader`, :meth:`BlockHost.real_writer`);
+per step the master gathers a sink's inputs with one precomputed index array, from the live
+table (Gauss-Seidel) or from the ``t_n`` snapshot (Jacobi), scales them by the connections'
+unit factors only for a block that has a factor other than 1, and checks each block's
+outputs for finiteness right after its step.
 """
 
 from __future__ import annotations
