@@ -42,6 +42,8 @@ from typing import Any
 
 import numpy as np
 
+import cosim.blocks
+from cosim.blocks import FmuHost
 from cosim.errors import SimulationError, UserError
 from cosim.isolate import StepBoard, watch
 from cosim.scenario import build_master, load_scenario
@@ -195,6 +197,7 @@ class _State:
 
 
 _LOCAL = threading.local()
+_BLOCKS_FILE = cosim.blocks.__file__  # FmuHost's frames, for _in_fmu_code
 _BOARD: StepBoard | None = None  # set in a local worker process
 
 
@@ -411,16 +414,25 @@ def _raise_pending(row: Any = None) -> None:
 
 
 def _in_fmu_code(frame: Any) -> bool:
-    """Whether Python code runs inside a call into an FMU (fmpy's frames below it)."""
+    """Whether Python code runs inside a call into an FMU.
+
+    That is, below a frame of an FMU host (:class:`cosim.blocks.FmuHost`, which may call
+    the FMU's C functions directly: a PythonFMU's model code then runs with the host's
+    frame as its caller) or below fmpy's Python wrappers; not in the host's or fmpy's
+    own code between two calls.
+    """
 
     def fmpy(f: Any) -> bool:
         return f"{os.sep}fmpy{os.sep}" in f.f_code.co_filename
 
-    if frame is None or fmpy(frame):
+    def host(f: Any) -> bool:
+        return f.f_code.co_filename == _BLOCKS_FILE and isinstance(f.f_locals.get("self"), FmuHost)
+
+    if frame is None or fmpy(frame) or host(frame):
         return False
     f = frame.f_back
     while f is not None:
-        if fmpy(f):
+        if fmpy(f) or host(f):
             return True
         f = f.f_back
     return False
