@@ -648,8 +648,9 @@ def campaign_draws(
 ) -> tuple[dict[str, FloatArray], dict[str, str]]:
     """Each run's drawn parameters, from the stratified design and the runs' own draws.
 
-    ``[campaign] stratify`` parameters follow from the campaign seed and run count
-    (:func:`cosim.verify.regression.drawn_parameters`); a sensor block that draws from
+    ``[campaign] stratify`` parameters follow from the campaign seed and its design (the
+    run count of a fixed campaign, one hypercube per look batch of ``--until-decided``;
+    :func:`cosim.verify.regression.drawn_parameters`); a sensor block that draws from
     its own seed gives its draw as a truth output at the start
     (:func:`cosim.verify.regression.recorded_draws`, from each run's recorded seed).
 
@@ -672,7 +673,8 @@ def campaign_draws(
     runs, seed = campaign.settings.design, campaign.settings.seed  # the stratified design
     draws = drawn_parameters(stratified, values, runs, seed, indices)
     origin = {
-        k: "[campaign] stratify: the design's draw (campaign seed and run count)" for k in draws
+        k: "[campaign] stratify: the design's draw (campaign seed and design batches)"
+        for k in draws
     }
     recorded = recorded_draws(
         campaign.scenario["file"], list(campaign.records), set(draws), stratified, runs, seed
