@@ -79,6 +79,9 @@ def verdicts(cli, path: Path, out: Path, *extra: str) -> dict:
     return {r["id"]: r["result"]["value"] for r in data["requirements"]}
 
 
+# Two Monte Carlo campaigns, from FMUs and in-process (~20 s); the default suite keeps
+# test_verify_cli::test_fmus_in_workers_give_the_in_process_metrics.
+@pytest.mark.slow
 def test_verify_from_fmus_gives_the_in_process_metrics(cli, fmu_dir: Path, tmp_path) -> None:
     path = ROOT / "scenarios" / "sins_north_finding.toml"
     ours = verdicts(cli, path, tmp_path / "ours", "--runs", "1")

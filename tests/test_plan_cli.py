@@ -133,6 +133,9 @@ def test_plan_prints_runs_and_time_per_requirement(tmp_path: Path) -> None:
     assert not list(tmp_path.glob("ins-cosim-plan-*")), "the pilot folder is removed"
 
 
+# slow (~17 s): an interrupted sequential campaign of real processes, resumed, and its
+# reference; tests/test_sequential_strata.py resumes a sequential design in the default run
+@pytest.mark.slow
 def test_until_decided_stops_and_resume_finishes_an_interrupted_one(tmp_path: Path) -> None:
     # The block crashblocks:Crasher (its output is in no requirement and it is not
     # randomized: no metric changes) holds every run after the first 14 at its

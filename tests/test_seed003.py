@@ -144,6 +144,8 @@ def test_static_campaign_is_consistent_with_its_covariance(
 
 
 # ------------------------------------------------------------------ acceptance 3, fast
+# slow: the 8 rotating runs of 600 s (~25 s), shared with the tables test below
+@pytest.mark.slow
 def test_rotating_campaign_beats_the_static_limit_consistently(
     rotating_fast: object, analyses: dict, facts: tuple
 ) -> None:
@@ -166,6 +168,7 @@ def test_rotating_campaign_beats_the_static_limit_consistently(
 
 
 # ------------------------------------------------------------------ acceptance 4
+@pytest.mark.slow  # the rotating campaign above
 def test_reproduction_tables_and_plots(
     tmp_path, static_fast: object, rotating_fast: object, analyses: dict, facts: tuple
 ) -> None:

@@ -59,6 +59,8 @@ def heading(cli, scenario: Path, out: Path) -> dict:
     return next(r["result"] for r in data["requirements"] if r["id"] == "TA-HDG-1")
 
 
+# A 4-run Monte Carlo campaign of 120 s transfer alignments through the C FMU, twice (~40 s).
+@pytest.mark.slow
 @pytest.mark.timeout(900)
 def test_vendor_imu_meets_the_heading_requirement_like_ours(cli, tmp_path, vendor_imu_fmu):
     ours = heading(cli, variant(tmp_path, "ours.toml", OURS), tmp_path / "ours")

@@ -141,6 +141,8 @@ def heading(cli, scenario: Path, out: Path) -> dict:
     return next(r["result"] for r in data["requirements"] if r["id"] == "TA-HDG-1")
 
 
+# A 4-run Monte Carlo campaign of 120 s transfer alignments through the C FMU, twice (~30 s).
+@pytest.mark.slow
 @pytest.mark.timeout(1200)
 def test_rate_imu_meets_the_heading_requirement_like_ours(cli, rate_imu: Path, tmp_path) -> None:
     from test_swap_in_transfer import OURS

@@ -133,6 +133,8 @@ def test_workers_that_die_while_loading_stop_the_campaign_in_one_line(tmp_path: 
     assert "\n" not in str(info.value)
 
 
+# slow (~17 s): three campaigns of real worker processes, one interrupted and resumed
+@pytest.mark.slow
 def test_resume_of_an_interrupted_campaign_with_crashing_runs_finishes_it(tmp_path: Path) -> None:
     """Acceptance 3 of issue 14, --resume: the CLI interrupted (SIGINT) after 16 run
     starts (the gate holds the rest), then resumed; the crashed run 7 is not run again."""
