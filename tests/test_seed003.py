@@ -120,6 +120,8 @@ def test_coarse_alignment_with_the_seed003_imu_is_within_the_theory(facts: tuple
 
 
 # ------------------------------------------------------------------ acceptance 2, fast
+# slow: 10 static runs of 300 s (~12 s), shared with the tables test
+@pytest.mark.slow
 def test_static_campaign_is_consistent_with_its_covariance(
     static_fast: object, analyses: dict
 ) -> None:
