@@ -1,6 +1,7 @@
 """The two-stage estimator of transfer alignment (seed 001), without the block layer.
 
 :class:`TransferFilter` owns the slave mechanisation (:class:`cosim.alignment.nav.Strapdown`,
+:func:`~cosim.alignment.nav_compiled.make_strapdown`: stepped in C where it can be,
 :data:`~cosim.alignment.nav.MOVING_BASE`), its period sums and the filters of the two
 stages (module docstring of :mod:`cosim.alignment.transfer`): stage 1, a Gaussian-sum
 bank of UKFs over the heading circle (open loop); stage 2, one UKF, closed loop. The
@@ -18,6 +19,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cosim.alignment.nav import MOVING_BASE, Strapdown
+from cosim.alignment.nav_compiled import CompiledStrapdown, make_strapdown
 from cosim.alignment.transfer_model import (
     PeriodSums,
     StateLayout,
@@ -119,6 +121,7 @@ class TransferFilter:
         self._bank: UnscentedParticleFilter | None = None
         self._best = 0
         self._m_prev: FloatArray | None = None
+        self._compiled = False
         self._flex_cache: dict[float, tuple[FloatArray, FloatArray]] = {}
         self._q_cache: dict[float, FloatArray] = {}
         self.P_show = tuning.P0(layout, lat)
@@ -183,7 +186,8 @@ class TransferFilter:
         """
         lay = self.layout
         v_lr = c_b_n @ cross(w_eb_b, self._r0)
-        self.nav = Strapdown(c_b_n, lat, height, v_m + v_lr, options=MOVING_BASE)
+        self.nav = make_strapdown(c_b_n, lat, height, v_m + v_lr, options=MOVING_BASE)
+        self._compiled = isinstance(self.nav, CompiledStrapdown)
         self._sums = PeriodSums(lat=lat, height=self.nav.height)
         m0 = flexure_matrix(c_b_n, w_eb_b, self._R0) if lay.flexure else None
         self._m_prev = m0
@@ -219,8 +223,11 @@ class TransferFilter:
         h : float
             Step [s].
         """
-        self.nav.step(dtheta, dv, h)
-        self._sums.add(self.nav, h)
+        if self._compiled:  # the step and the sums in one call (nav.sums_into reads them)
+            self.nav.step_summed(dtheta, dv, h)
+        else:
+            self.nav.step(dtheta, dv, h)
+            self._sums.add(self.nav, h)
 
     def _show_bank(self) -> None:
         bank = self._bank
@@ -244,6 +251,8 @@ class TransferFilter:
         """
         sd, lay, st = self.nav, self.layout, self.settings
         sums = self._sums
+        if self._compiled:
+            sd.sums_into(sums)
         T = sums.T
         m1 = None
         if lay.flexure:
@@ -289,6 +298,8 @@ class TransferFilter:
         sd = self.nav
         sd.refresh()
         self._sums = PeriodSums(lat=sd.lat, height=sd.height)
+        if self._compiled:
+            sd.clear_sums()
 
     def _feedback(self, x: FloatArray, P: FloatArray, m1: FloatArray | None) -> FloatArray:
         """Correct the mechanisation with the estimate ``x``; return the reset covariance."""

@@ -39,6 +39,9 @@ import numpy as np
 
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "kernels.c"
+#: Every C source of the library (``kernels.c``: the truth models; ``strapdown.c``: the
+#: alignment filters' mechanisation; the other files: further filter kernels).
+SOURCES = tuple(sorted(HERE.glob("*.c")))
 BUILD_DIR = HERE / "build"
 #: Environment variable that switches the compiled kernels off when set to ``0``.
 ENV = "INS_COSIM_NATIVE"
@@ -55,9 +58,12 @@ def library_path() -> Path:
     -------
     Path
         ``models/native/build/kernels-<hash>.so``, the hash being the first 16 hex
-        digits of the SHA-256 of ``kernels.c``.
+        digits of the SHA-256 of the C sources (:data:`SOURCES`, names and contents).
     """
-    digest = hashlib.sha256(SOURCE.read_bytes()).hexdigest()[:16]
+    sha = hashlib.sha256()
+    for source in SOURCES:
+        sha.update(source.name.encode() + b"\0" + source.read_bytes() + b"\0")
+    digest = sha.hexdigest()[:16]
     return BUILD_DIR / f"kernels-{digest}.so"
 
 
@@ -75,7 +81,7 @@ def _compiler() -> str | None:
 
 
 def build(force: bool = False) -> Path:
-    """Compile ``kernels.c`` into :func:`library_path` (atomically; old builds removed).
+    """Compile the C sources into :func:`library_path` (atomically; old builds removed).
 
     Parameters
     ----------
@@ -107,12 +113,10 @@ def build(force: bool = False) -> Path:
     os.close(fd)
     try:
         proc = subprocess.run(
-            [cc, *CFLAGS, "-o", tmp, str(SOURCE), "-lm"], capture_output=True, text=True
+            [cc, *CFLAGS, "-o", tmp, *map(str, SOURCES), "-lm"], capture_output=True, text=True
         )
         if proc.returncode != 0:
-            raise RuntimeError(
-                f"compiling models/native/kernels.c failed ({cc}):\n{proc.stderr.strip()}"
-            )
+            raise RuntimeError(f"compiling models/native/*.c failed ({cc}):\n{proc.stderr.strip()}")
         os.replace(tmp, target)
     finally:
         if os.path.exists(tmp):
@@ -170,6 +174,36 @@ def library() -> ctypes.CDLL | None:
     if os.environ.get(ENV, "1").strip() == "0":
         return None
     return _load()
+
+
+def declare(name: str, argtypes: list, restype: object = None) -> Callable | None:
+    """A kernel of the library with its C signature, for a block being initialised.
+
+    The truth models' kernels are declared when the library loads; the filters' own
+    kernels (``strapdown.c`` and the others) are declared by the module that calls them.
+
+    Parameters
+    ----------
+    name : str
+        The C function.
+    argtypes : list
+        Its ctypes argument types (``ctypes.c_void_p`` for ``double *``, ...).
+    restype : ctypes type or None
+        Its result type (None: ``void``).
+
+    Returns
+    -------
+    callable or None
+        The function; None when :func:`library` is None (numpy path) or the library has no
+        such function.
+    """
+    lib = library()
+    fn = None if lib is None else getattr(lib, name, None)
+    if fn is None:
+        return None
+    fn.argtypes = argtypes
+    fn.restype = restype
+    return fn
 
 
 def status() -> str:
