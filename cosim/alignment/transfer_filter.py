@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -26,9 +27,10 @@ from cosim.alignment.transfer_model import (
     TransferTuning,
     flexure_matrix,
     measurement,
-    propagate,
     reset_jacobian,
 )
+from cosim.alignment.transfer_native import make_propagate
+from cosim.alignment.transfer_ukf_native import make_fine_period
 from cosim.estimation import (
     MerweScaledSigmaPoints,
     UnscentedKalmanFilter,
@@ -122,6 +124,8 @@ class TransferFilter:
         self._best = 0
         self._m_prev: FloatArray | None = None
         self._compiled = False
+        self._propagate = make_propagate(layout)  # compiled where it can run, else numpy
+        self._fine: Any = None  # stage 2's compiled period (make_fine_period), or None
         self._flex_cache: dict[float, tuple[FloatArray, FloatArray]] = {}
         self._q_cache: dict[float, FloatArray] = {}
         self.P_show = tuning.P0(layout, lat)
@@ -142,7 +146,7 @@ class TransferFilter:
         return MerweScaledSigmaPoints(self.layout.n, s.ukf_alpha, s.ukf_beta, s.ukf_kappa)
 
     def _fx(self, x: FloatArray, dt: float, sums: PeriodSums) -> FloatArray:
-        return propagate(x, sums, self.layout)
+        return self._propagate(x, sums)
 
     def _hx(self, x: FloatArray) -> FloatArray:
         return measurement(x, self.layout)
@@ -278,9 +282,12 @@ class TransferFilter:
             self._new_period()
             return
         ukf = self._ukf
-        ukf.predict(T, Q=Q, sums=sums)
-        ukf.update(z, R=R)
-        self.nis = float(ukf.y @ np.linalg.solve(ukf.S, ukf.y))
+        nis = None if self._fine is None else self._fine(ukf, T, Q, R, z, sums)
+        if nis is None:  # numpy (also where the compiled call found P not positive definite)
+            ukf.predict(T, Q=Q, sums=sums)
+            ukf.update(z, R=R)
+            nis = float(ukf.y @ np.linalg.solve(ukf.S, ukf.y))
+        self.nis = nis
         x = ukf.x.copy()
         P = self._feedback(x, ukf.P, m1)
         x_new = np.zeros(lay.n)
@@ -359,6 +366,7 @@ class TransferFilter:
         ukf.x = np.zeros(n)
         ukf.P = 0.5 * (P + P.T)
         self._ukf = ukf
+        self._fine = make_fine_period(self._propagate, n, lay.flexure, lay.heading)
         self._bank = None
         self.x_show = ukf.x
         self.P_show = ukf.P
