@@ -145,7 +145,7 @@ class FedFilter:
             setattr(block, name, values[0])
         block.exit_initialization_mode()
         rows = n_steps // self.every + 1
-        rec = {name: [getattr(block, name)] for name in self.outputs}
+        rec = {name: [np.array(getattr(block, name), dtype=float)] for name in self.outputs}
         for n in range(n_steps):
             for name, values in feed:
                 setattr(block, name, values[n + 1])
@@ -153,7 +153,7 @@ class FedFilter:
             block.do_step(t_begin, (t0 + (n + 1) * h) - t_begin)
             if (n + 1) % self.every == 0:
                 for name, values in rec.items():
-                    values.append(getattr(block, name))
+                    values.append(np.array(getattr(block, name), dtype=float))
         self.recorded = {name: np.array(v, dtype=float) for name, v in rec.items()}
         assert all(len(v) == rows for v in self.recorded.values())
 

@@ -78,6 +78,16 @@ the most probable hypothesis (``nis`` too: its own UKF's innovation). Also: ``re
 estimates with their sigmas, ``nees`` (attitude error against ``P``, 3 degrees of
 freedom), ``nis`` (0 before the first update) and ``stage``.
 
+Compiled outputs: when :func:`models.native.declare` gives ``transfer_publish``
+(``models/native/transfer_publish.c``), the per-step outputs (``rpy_err``,
+``rpy_sigma``, ``rel_rpy``, ``nees``) and the step's master attitude ``C_b_n`` are one
+call; :meth:`TransferAlignment._attitude_numpy` stays as the fallback and the readable
+statement (``INS_COSIM_NATIVE=0``, no library), equal to rounding
+(``tests/test_native_publish.py``). Either way the vector outputs are written in place
+into the block's output buffer while they are its views, so the master reads them as one
+slice (:meth:`models.block.Block.real_reader`); an output rebound from outside is
+assigned a new array instead.
+
 Limits: the block must step every macro step (rate 1) with a constant step that divides
 ``period``: its strapdown needs every increment; it starts once it has five master
 attitudes (for the rate), i.e. four steps after the start. Without a lever arm the
@@ -87,6 +97,7 @@ stage is not designed for (README, seed 001).
 
 from __future__ import annotations
 
+import ctypes
 import math
 from collections import deque
 
@@ -102,6 +113,7 @@ from cosim.alignment.transfer_model import (
     TransferTuning,
     master_rate,
 )
+from models import native
 from models.block import Block, input_, output, parameter
 from models.constants import ARCMIN, DEG
 from models.conventions import dcm_to_euler_3, euler_to_dcm, euler_to_dcm_3, wrap_angle
@@ -109,6 +121,13 @@ from models.conventions import dcm_to_euler_3, euler_to_dcm, euler_to_dcm_3, wra
 FloatArray = NDArray[np.float64]
 
 _ZERO3 = (0.0, 0.0, 0.0)
+#: Inputs of the per-step outputs, in the kernel's order (back to back in the input buffer).
+PUBLISH_INPUTS = ("rpy_master", "rpy_s_true", "rpy_m_true")
+#: The per-step vector outputs, in the kernel's order (back to back in the output buffer).
+PUBLISH_OUTPUTS = ("rpy_err", "rpy_sigma", "rel_rpy")
+#: The master attitudes kept for the rate (:func:`~cosim.alignment.transfer_model.master_rate`).
+HISTORY = 5
+_PTR = ctypes.c_void_p
 
 
 # ----------------------------------------------------------------------------- the block
@@ -173,6 +192,12 @@ class TransferAlignment(Block):
     default_stop = 10.0
 
     # ------------------------------------------------------------------ set-up
+    @property
+    def compiled(self) -> bool:
+        """True when the per-step outputs are computed by ``transfer_publish`` (set by
+        :meth:`initialize`, :func:`models.native.declare`), False on the numpy path."""
+        return getattr(self, "_native_publish", None) is not None
+
     def tuning(self) -> TransferTuning:
         """The filter statistics from the parameters."""
         return TransferTuning(
@@ -253,12 +278,34 @@ class TransferAlignment(Block):
         self._filter = TransferFilter(
             self._layout, self.tuning(), self.r0, settings, float(self.lat_master)
         )
-        self._hist: deque[FloatArray] = deque(maxlen=5)
-        self._hist.appendleft(euler_to_dcm(np.asarray(self.rpy_master, dtype=float)))
+        # the master attitudes, newest first: views of a ring of HISTORY matrices (the
+        # oldest one's storage takes the newest)
+        self._ring = np.zeros((HISTORY, 3, 3))
+        self._hist: deque[FloatArray] = deque(maxlen=HISTORY)
+        self._ring[0] = euler_to_dcm(np.asarray(self.rpy_master, dtype=float))
+        self._hist.appendleft(self._ring[0])
         self._h: float | None = None
         self._k = 0
         self._n = 0
         self._P_cached: FloatArray | None = None
+        self._att_T: FloatArray | None = None
+        # what changes with P (per filter period): att_T, P_att, P_att^-1, ARCMIN
+        self._per = np.zeros(28)
+        self._per[27] = ARCMIN
+        self._P_att = self._per[9:18].reshape(3, 3)
+        self._P_att_inv = self._per[18:27].reshape(3, 3)
+        # the vector outputs back to the output buffer's views (a re-initialised block)
+        for name, view in self._out_views.items():
+            setattr(self, name, view)
+        self._io = native.Buffers(self, PUBLISH_INPUTS, PUBLISH_OUTPUTS)
+        self._native_publish = native.declare(
+            "transfer_publish", [_PTR, _PTR, ctypes.c_int, _PTR, _PTR, _PTR], ctypes.c_double
+        )
+        if self._native_publish is not None:
+            self._c_nav = np.zeros((3, 3))
+            self._c_nav_ptr = native.pointer(self._c_nav)
+            self._per_ptr = native.pointer(self._per)
+            self._ring_ptrs = [native.pointer(c) for c in self._ring]
         self.nis = 0.0
         self.stage = 0.0
         self._publish()
@@ -278,8 +325,8 @@ class TransferAlignment(Block):
             )
 
     def _master_state(self) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Newest master attitude, rate w.r.t. earth (master axes) and velocity."""
-        c = self._hist[0]
+        """Newest master attitude (a copy), rate w.r.t. earth (master axes) and velocity."""
+        c = self._hist[0].copy()
         v_m = np.asarray(self.v_master_n, dtype=float)
         _, w_en = nav_rates(v_m, float(self.lat_master), float(self.h_master))
         w_eb = master_rate(list(self._hist), self._h) + c.T @ w_en
@@ -288,9 +335,14 @@ class TransferAlignment(Block):
     # ------------------------------------------------------------------ stepping
     def step(self, t: float, h: float) -> None:
         self._check_step(h)
-        self._hist.appendleft(euler_to_dcm_3(self.rpy_master))
         self._n += 1
         f = self._filter
+        c_m = self._ring[self._n % HISTORY]
+        self._hist.appendleft(c_m)
+        # the step's master attitude; the compiled publish computes it too (the same
+        # arithmetic), so it is needed here only when the filter uses it
+        if self._native_publish is None or f.nav is None or self._n % self._k == 0:
+            c_m[...] = euler_to_dcm_3(self.rpy_master)
         if f.nav is None:
             if len(self._hist) == self._hist.maxlen:
                 f.start(*self._master_state(), float(self.lat_master), float(self.h_master))
@@ -302,58 +354,106 @@ class TransferAlignment(Block):
         self.stage = f.stage
         self._publish()
 
-    def _publish(self) -> None:
+    def _set_vector(self, name: str, value: FloatArray) -> None:
+        """Output ``name`` := ``value``: in place while it is the output buffer's view (the
+        master reads the buffer as one slice), else as a new array."""
+        view = self._out_views[name]
+        if getattr(self, name) is view:
+            view[...] = value
+        else:
+            setattr(self, name, np.array(value, dtype=float))
+
+    def _publish_period(self) -> None:
+        """The outputs and constants that change with the shown covariance ``P``."""
         lay, f = self._layout, self._filter
         x_show = f.x_show
+        P = f.P_show
+        self._P_cached = P
+        self._P_att[...] = P[lay.att, lay.att]
+        self._P_att_inv[...] = np.linalg.inv(self._P_att)
+        self._att_T = None  # the shown attitude error's E^T, made when stage 1 needs it
+        put = self._set_vector
+        put("accel_bias_sigma", np.sqrt(P[lay.nabla, lay.nabla].diagonal()))
+        put("gyro_drift_sigma", np.sqrt(P[lay.eps, lay.eps].diagonal()))
+        if lay.flexure:
+            put("flex", x_show[7:10] / ARCMIN)
+            put("flex_sigma", np.sqrt(P[7:10, 7:10].diagonal()) / ARCMIN)
+        else:
+            put("flex", np.zeros(3))
+            put("flex_sigma", np.zeros(3))
+        sd = f.nav
+        put("accel_bias", (sd.accel_bias if sd is not None else 0.0) + x_show[lay.nabla])
+        put("gyro_drift", (sd.gyro_bias if sd is not None else 0.0) + x_show[lay.eps])
+
+    def _publish(self) -> None:
+        """Set every output from the filter's shown estimate and the step's inputs."""
+        f = self._filter
         if f.P_show is not self._P_cached:
-            P = f.P_show
-            self._P_cached = P
-            self._P_att = P[lay.att, lay.att].copy()
-            self._P_att_inv = np.linalg.inv(self._P_att)
-            self._att_T = None  # the shown attitude error's E^T, made when stage 1 needs it
-            self.accel_bias_sigma = np.sqrt(P[lay.nabla, lay.nabla].diagonal())
-            self.gyro_drift_sigma = np.sqrt(P[lay.eps, lay.eps].diagonal())
-            if lay.flexure:
-                self.flex = x_show[7:10] / ARCMIN
-                self.flex_sigma = np.sqrt(P[7:10, 7:10].diagonal()) / ARCMIN
+            self._publish_period()
+        if self._att_T is None and f.nav is not None and f.stage == 1.0:
+            self._att_T = self._per[0:9].reshape(3, 3)
+            self._att_T[...] = euler_to_dcm_3(f.x_show[self._layout.att]).T
+        io = self._io
+        if self._native_publish is not None:
+            if f.nav is None:
+                mode = 0
             else:
-                self.flex = np.zeros(3)
-                self.flex_sigma = np.zeros(3)
-            sd = f.nav
-            self.accel_bias = (sd.accel_bias if sd is not None else 0.0) + x_show[lay.nabla]
-            self.gyro_drift = (sd.gyro_bias if sd is not None else 0.0) + x_show[lay.eps]
-        # per step: the attitude outputs, scalar arithmetic around the matrix products
+                self._c_nav[...] = f.nav.C_s_n
+                mode = 1 if f.stage == 1.0 else 2
+            self.nees = self._native_publish(
+                io.input_pointer(),
+                self._c_nav_ptr,
+                mode,
+                self._per_ptr,
+                self._ring_ptrs[self._n % HISTORY],
+                io.output_pointer(),
+            )
+            io.publish()
+            return
+        values, self.nees = self._attitude_numpy()
+        out = io.output_array()
+        if out is not None:
+            out[...] = values
+        else:
+            self.rpy_err, self.rpy_sigma, self.rel_rpy = values[0:3], values[3:6], values[6:9]
+
+    def _attitude_numpy(self) -> tuple[FloatArray, float]:
+        """The per-step outputs in numpy (the statement of ``transfer_publish``).
+
+        Returns
+        -------
+        values : ndarray, shape (9,)
+            ``rpy_err`` [arcmin], ``rpy_sigma`` [arcmin], ``rel_rpy`` [rad], in this order.
+        nees : float
+            NEES of the attitude error (3 degrees of freedom).
+        """
+        f = self._filter
         if f.nav is None:
             c_est = self._hist[0]
         else:  # stage 1 runs open loop: apply the best hypothesis' attitude error
             c_est = f.nav.C_s_n
             if f.stage == 1.0:
-                if self._att_T is None:
-                    self._att_T = euler_to_dcm_3(x_show[lay.att]).T
                 c_est = self._att_T @ c_est
         c_m_t = euler_to_dcm_3(self.rpy_m_true).T
         c_s = euler_to_dcm_3(self.rpy_s_true)
         rel_est = dcm_to_euler_3(c_m_t @ c_est)
         e0, e1, e2 = rel_est.tolist()
         r0, r1, r2 = dcm_to_euler_3(c_m_t @ c_s).tolist()
-        self.rpy_err = np.array(
+        B = euler_rate_matrix_inv(rel_est) @ c_m_t
+        s0, s1, s2 = (B @ self._P_att @ B.T).diagonal().tolist()
+        rel_rpy = dcm_to_euler_3(self._hist[0].T @ c_est)
+        values = np.array(
             [
                 wrap_angle(e0 - r0) / ARCMIN,
                 wrap_angle(e1 - r1) / ARCMIN,
                 wrap_angle(e2 - r2) / ARCMIN,
-            ]
-        )
-        B = euler_rate_matrix_inv(rel_est) @ c_m_t
-        s0, s1, s2 = (B @ self._P_att @ B.T).diagonal().tolist()
-        self.rpy_sigma = np.array(
-            [
                 math.sqrt(max(s0, 0.0)) / ARCMIN,
                 math.sqrt(max(s1, 0.0)) / ARCMIN,
                 math.sqrt(max(s2, 0.0)) / ARCMIN,
+                *rel_rpy.tolist(),
             ]
         )
-        self.rel_rpy = dcm_to_euler_3(self._hist[0].T @ c_est)
         # small-angle rotation vector of the error (exact for NEES use)
         (_, d01, d02), (d10, _, d12), (d20, d21, _) = (c_est @ c_s.T).tolist()
         e_n = np.array([0.5 * (d21 - d12), 0.5 * (d02 - d20), 0.5 * (d10 - d01)])
-        self.nees = float(e_n @ self._P_att_inv @ e_n)
+        return values, float(e_n @ self._P_att_inv @ e_n)
