@@ -59,7 +59,7 @@ def _setup(layout: StateLayout, heading: float) -> tuple[TransferFilter, PeriodS
     args = {
         "x": x,
         "P": P,
-        "Q": filt._process_noise(0.5, m if layout.flexure else None),
+        "Q": filt.process_noise(0.5, m if layout.flexure else None),
         "R": 1e-4 * np.eye(3),
         "z": np.array([0.02, -0.01, 0.005]),
     }
@@ -71,7 +71,10 @@ def _ukf(
 ) -> UnscentedKalmanFilter:
     s = StageSettings()
     ukf = UnscentedKalmanFilter(
-        layout.n, 3, filt._fx, lambda pts: measurement(pts, layout),
+        layout.n,
+        3,
+        lambda x, dt, sums: filt.propagate(x, sums),
+        lambda pts: measurement(pts, layout),
         MerweScaledSigmaPoints(layout.n, s.ukf_alpha, s.ukf_beta, s.ukf_kappa),
         residual_x=angle_residual_fn([layout.heading]),
         x_mean_fn=angle_mean_fn([layout.heading]),
@@ -105,7 +108,7 @@ def test_compiled_period_leaves_the_ukf_as_predict_and_update(
     if heading == "crossing":
         heading = _crossing(layout)
     filt, sums, a = _setup(layout, float(heading))
-    fine = make_fine_period(filt._propagate, layout.n, layout.flexure, layout.heading)
+    fine = make_fine_period(filt.propagate, layout.n, layout.flexure, layout.heading)
     assert isinstance(fine, CompiledFinePeriod)
     ref = _ukf(filt, layout, a["x"], a["P"])
     ref.predict(0.5, Q=a["Q"], sums=sums)
@@ -131,7 +134,7 @@ def test_compiled_period_leaves_the_ukf_as_predict_and_update(
 def test_a_covariance_that_is_not_positive_definite_changes_nothing_and_numpy_raises() -> None:
     layout = StateLayout(True)
     filt, sums, a = _setup(layout, 0.3)
-    fine = make_fine_period(filt._propagate, layout.n, layout.flexure, layout.heading)
+    fine = make_fine_period(filt.propagate, layout.n, layout.flexure, layout.heading)
     P = a["P"].copy()
     P[5, 5] = -1e-6
     ukf = _ukf(filt, layout, a["x"], P)

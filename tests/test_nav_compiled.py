@@ -74,11 +74,14 @@ def test_compiled_steps_and_sums_equal_the_numpy_integrator(opts: Mechanisation)
 
 def test_the_first_step_has_no_previous_increment() -> None:
     ref, fast = _pair(MOVING_BASE)
-    assert fast._prev is None
-    ref.step([1e-3, 0.0, 0.0], [0.0, 0.0, -0.49], 0.05)
-    fast.step([1e-3, 0.0, 0.0], [0.0, 0.0, -0.49], 0.05)
-    assert fast._prev == pytest.approx(ref._prev, rel=0, abs=0)
-    _close(ref.phi, fast.phi)
+    first, second = [1e-3, 2e-3, -1e-3], [2e-3, -1e-3, 5e-4]
+    for nav in (ref, fast):
+        nav.step(first, [0.0, 0.0, -0.49], 0.05)
+        assert nav.phi.tolist() == first  # no coning term without a previous increment
+    for nav in (ref, fast):
+        nav.step(second, [0.0, 0.0, -0.49], 0.05)
+        assert nav.phi.tolist() != second  # the coning term with the first increment
+    assert fast.phi.tolist() == ref.phi.tolist()
 
 
 def test_attributes_are_copies_and_settable() -> None:

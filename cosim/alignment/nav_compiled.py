@@ -112,7 +112,17 @@ class CompiledStrapdown(Strapdown):
         self._kernel(self._nav_ptr, sums, self._dth_ptr, self._dv_ptr, h, self._flags, self._every)
 
     def step(self, dtheta: ArrayLike, dv: ArrayLike, h: float) -> None:
-        """Advance by one step of measured increments (see the base class)."""
+        """Advance by one step of measured increments (see the base class).
+
+        Parameters
+        ----------
+        dtheta : array_like, shape (3,)
+            Angle increment over the step, sensor axes [rad].
+        dv : array_like, shape (3,)
+            Velocity increment, sensor axes [m/s].
+        h : float
+            Step [s].
+        """
         self._run(dtheta, dv, h, None)
 
     def step_summed(self, dtheta: ArrayLike, dv: ArrayLike, h: float) -> None:

@@ -81,7 +81,7 @@ freedom), ``nis`` (0 before the first update) and ``stage``.
 Compiled outputs: when :func:`models.native.declare` gives ``transfer_publish``
 (``models/native/transfer_publish.c``), the per-step outputs (``rpy_err``,
 ``rpy_sigma``, ``rel_rpy``, ``nees``) and the step's master attitude ``C_b_n`` are one
-call; :meth:`TransferAlignment._attitude_numpy` stays as the fallback and the readable
+call; :meth:`TransferAlignment.attitude_numpy` stays as the fallback and the readable
 statement (``INS_COSIM_NATIVE=0``, no library), equal to rounding
 (``tests/test_native_publish.py``). Either way the vector outputs are written in place
 into the block's output buffer while they are its views, so the master reads them as one
@@ -197,6 +197,16 @@ class TransferAlignment(Block):
         """True when the per-step outputs are computed by ``transfer_publish`` (set by
         :meth:`initialize`, :func:`models.native.declare`), False on the numpy path."""
         return getattr(self, "_native_publish", None) is not None
+
+    @property
+    def estimator(self) -> TransferFilter:
+        """The two-stage estimator the block feeds (mechanisation, stages, shown state)."""
+        return self._filter
+
+    @property
+    def master_dcm(self) -> FloatArray:
+        """The master's attitude ``C_b_n`` of the newest step, shape (3, 3) (kept, not a copy)."""
+        return self._hist[0]
 
     def tuning(self) -> TransferTuning:
         """The filter statistics from the parameters."""
@@ -410,14 +420,14 @@ class TransferAlignment(Block):
             )
             io.publish()
             return
-        values, self.nees = self._attitude_numpy()
+        values, self.nees = self.attitude_numpy()
         out = io.output_array()
         if out is not None:
             out[...] = values
         else:
             self.rpy_err, self.rpy_sigma, self.rel_rpy = values[0:3], values[3:6], values[6:9]
 
-    def _attitude_numpy(self) -> tuple[FloatArray, float]:
+    def attitude_numpy(self) -> tuple[FloatArray, float]:
         """The per-step outputs in numpy (the statement of ``transfer_publish``).
 
         Returns

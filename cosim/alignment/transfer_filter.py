@@ -124,7 +124,9 @@ class TransferFilter:
         self._best = 0
         self._m_prev: FloatArray | None = None
         self._compiled = False
-        self._propagate = make_propagate(layout)  # compiled where it can run, else numpy
+        #: The error model over a period, ``propagate(x, sums)``: compiled where it can
+        #: run, else numpy (:func:`cosim.alignment.transfer_native.make_propagate`).
+        self.propagate = make_propagate(layout)
         self._fine: Any = None  # stage 2's compiled period (make_fine_period), or None
         self._flex_cache: dict[float, tuple[FloatArray, FloatArray]] = {}
         self._q_cache: dict[float, FloatArray] = {}
@@ -146,12 +148,26 @@ class TransferFilter:
         return MerweScaledSigmaPoints(self.layout.n, s.ukf_alpha, s.ukf_beta, s.ukf_kappa)
 
     def _fx(self, x: FloatArray, dt: float, sums: PeriodSums) -> FloatArray:
-        return self._propagate(x, sums)
+        return self.propagate(x, sums)
 
     def _hx(self, x: FloatArray) -> FloatArray:
         return measurement(x, self.layout)
 
-    def _process_noise(self, T: float, m1: FloatArray | None) -> FloatArray:
+    def process_noise(self, T: float, m1: FloatArray | None) -> FloatArray:
+        """The process noise over a period of ``T`` [s], shape (n, n).
+
+        Parameters
+        ----------
+        T : float
+            Period [s].
+        m1 : ndarray, shape (3, 6), or None
+            Flexure matrix at the period's end (None without the flexure states).
+
+        Returns
+        -------
+        ndarray, shape (n, n)
+            Symmetric.
+        """
         lay, tu = self.layout, self.tuning
         base = self._q_cache.get(T)  # keyed on T exactly: Q's terms in T are T's own
         if base is None:  # the parts that depend on T only
@@ -264,7 +280,7 @@ class TransferFilter:
             sums.m0, sums.m1 = self._m_prev, m1
             sums.phi_flex = self._flex(T)[0]
             self._m_prev = m1
-        Q = self._process_noise(T, m1)
+        Q = self.process_noise(T, m1)
         R = self.tuning.r_vel**2 * _I3
         z = sd.v_n - v_m - c_b_n @ cross(w_eb_b, self._r0)
         if self.stage == 1.0:
@@ -366,7 +382,7 @@ class TransferFilter:
         ukf.x = np.zeros(n)
         ukf.P = 0.5 * (P + P.T)
         self._ukf = ukf
-        self._fine = make_fine_period(self._propagate, n, lay.flexure, lay.heading)
+        self._fine = make_fine_period(self.propagate, n, lay.flexure, lay.heading)
         self._bank = None
         self.x_show = ukf.x
         self.P_show = ukf.P

@@ -49,7 +49,7 @@ class CompiledFinePeriod:
 
     def __init__(self, kernel: Any, propagate: Any, n: int, flexure: bool, heading: int) -> None:
         self._kernel = kernel
-        self._propagate = propagate
+        self._model = propagate
         self.n, self._flexure, self._heading = n, int(flexure), int(heading)
         self._x = np.zeros(n)
         self._P = np.zeros((n, n))
@@ -104,8 +104,8 @@ class CompiledFinePeriod:
         self._Q[...] = Q
         self._R[...] = R
         self._z[:] = z
-        par = self._propagate.pack(sums)
-        spread = float(ukf.points._spread)
+        par = self._model.pack(sums)
+        spread = float(ukf.points.spread)
         code = self._kernel(
             *self._ptrs[:5], par, wm_ptr, wc_ptr, spread, n, self._flexure, self._heading,
             self._out_ptr,

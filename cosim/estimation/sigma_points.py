@@ -108,6 +108,11 @@ class _SymmetricSigmaPoints:
         """Number of sigma points, ``2n + 1``."""
         return 2 * self.n + 1
 
+    @property
+    def spread(self) -> float:
+        """The factor ``c`` of ``sqrt(c P)`` (Merwe: ``n + lambda``, computed directly)."""
+        return self._spread
+
     def sigma_points(self, x: ArrayLike, P: ArrayLike, *, robust: bool = False) -> FloatArray:
         """Sigma points of ``N(x, P)``, batched over leading axes.
 
