@@ -89,10 +89,14 @@ def start_forkserver() -> float:
     import multiprocessing
 
     from cosim.verify.pool import pool_context
+    from cosim.verify.pool import start_forkserver as start_pool_forkserver
 
     if "forkserver" not in multiprocessing.get_all_start_methods():
         return 0.0
     start = time.perf_counter()
+    # as the engine starts it (its workers' numpy on one BLAS thread each), not as a bare
+    # Process would, which starts it with this process's environment
+    start_pool_forkserver()
     proc = pool_context().Process(target=_noop)
     proc.start()
     proc.join()
@@ -123,10 +127,12 @@ def run(out: Path, workers: int, runs: int) -> dict[str, Any]:
     from cosim.verify.pool import WorkerPool
 
     cpu = _own_cpu()
+    thread = time.thread_time()
     start = time.perf_counter()
     if workers == 1:
         campaign = run_campaign(SCENARIO, out, runs=runs, workers=1, progress=False)
         wall, used, ready = time.perf_counter() - start, _own_cpu() - cpu, float("nan")
+        thread = time.thread_time() - thread
     else:
         with WorkerPool(workers) as pool:
             campaign = run_campaign(SCENARIO, out, runs=runs, pool=pool, progress=False)
@@ -145,6 +151,7 @@ def run(out: Path, workers: int, runs: int) -> dict[str, Any]:
         "runs_cpu": sum(r.cpu_time for r in campaign.records),
         "metrics": {r.index: r.metrics for r in campaign.records},
         "ready": ready,
+        "thread": thread if workers == 1 else float("nan"),
     }
 
 
@@ -188,6 +195,9 @@ def measure(runs: int = RUNS) -> dict[str, Any]:
     speedup = one["wall"] / two["wall"]
     same = all(got["metrics"] == one["metrics"] for got in (*done[1], *done[2]))
     bound = 2 * one["cpu"] / two["cpu"]
+    # the campaign's work on one busy core (this thread: without BLAS's idle threads)
+    # against the runs' CPU time when both cores run them
+    alone, both = one["thread"] / runs, two["runs_cpu"] / runs
     return {
         **row,
         "ratio": speedup,
@@ -198,6 +208,9 @@ def measure(runs: int = RUNS) -> dict[str, Any]:
             f"{two['cpu']:.1f} s (the runs' own {one['runs_cpu']:.1f} s and "
             f"{two['runs_cpu']:.1f} s): cores obtained {one['cores']:.2f} and {two['cores']:.2f} "
             f"(2.00 = both cores free), 2 x CPU(1)/CPU(2) = {bound:.2f} (both cores free); "
+            f"CPU per run with one core busy {alone:.3f} s (the campaign's thread, without "
+            f"BLAS's waiting threads), with both busy {both:.3f} s ({100 * (both / alone - 1):+.0f}"
+            f" %), so two cores give at most {2 * alone / both:.2f} here; "
             f"workers ready {two['ready']:.2f} s after their start; forkserver start "
             f"{forkserver:.1f} s (once per process, outside both timings); "
             f"metrics of all campaigns {'identical' if same else 'DIFFER'}; {note} "
