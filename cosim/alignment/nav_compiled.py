@@ -29,8 +29,9 @@ from models import native
 
 FloatArray = NDArray[np.float64]
 
-#: Buffer layout of ``strapdown.c``: attribute -> (offset, shape).
-_NAV_FIELDS: dict[str, tuple[int, tuple[int, ...]]] = {
+#: Buffer layout of ``strapdown.c`` (:attr:`CompiledStrapdown.state_pointer`): vector
+#: attribute -> (offset, shape) in doubles; :data:`NAV_SCALARS`: scalar -> offset.
+NAV_FIELDS: dict[str, tuple[int, tuple[int, ...]]] = {
     "C_s_n": (0, (3, 3)),
     "v_n": (9, (3,)),
     "v_prev": (12, (3,)),
@@ -44,7 +45,7 @@ _NAV_FIELDS: dict[str, tuple[int, tuple[int, ...]]] = {
     "w_ie": (51, (3,)),
     "_cor_ie": (54, (3,)),
 }
-_SCALARS = {"lat": 15, "height": 16, "_rm": 57, "_rn": 58, "_tan": 59, "g": 60}
+NAV_SCALARS = {"lat": 15, "height": 16, "_rm": 57, "_rn": 58, "_tan": 59, "g": 60}
 _HAS_PREV, _COUNT, _NAV_ROT, _H_NAV = 50, 61, 62, 71
 NAV_SIZE = 72
 #: Period-sum buffer: T, dv_f, c_int (3x3), v_int, w_in T, cor T.
@@ -99,6 +100,12 @@ class CompiledStrapdown(Strapdown):
             raise ValueError("CompiledStrapdown: only two-sample increments are compiled")
         self._flags = int(o.transport_rate) | 2 * int(o.vertical) | 4 * int(o.midpoint_velocity)
         self._every = int(o.orthonormalise_every)
+
+    @property
+    def state_pointer(self) -> int:
+        """Address of the state buffer (float64, :data:`NAV_SIZE`; layout :data:`NAV_FIELDS`,
+        :data:`NAV_SCALARS`), for kernels that correct the mechanisation in place."""
+        return self._nav_ptr
 
     def refresh(self) -> None:
         """Re-evaluate the latitude-dependent constants (the base class's, into the buffer)."""
@@ -166,9 +173,9 @@ class CompiledStrapdown(Strapdown):
         raise NotImplementedError("CompiledStrapdown steps in C")
 
 
-for _name, (_offset, _shape) in _NAV_FIELDS.items():
+for _name, (_offset, _shape) in NAV_FIELDS.items():
     setattr(CompiledStrapdown, _name, _vector(_offset, _shape))
-for _name, _offset in _SCALARS.items():
+for _name, _offset in NAV_SCALARS.items():
     setattr(CompiledStrapdown, _name, _scalar(_offset))
 
 
