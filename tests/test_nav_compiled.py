@@ -104,3 +104,19 @@ def test_numpy_where_nothing_is_compiled(monkeypatch: pytest.MonkeyPatch) -> Non
     assert type(make_strapdown(c, 0.3, options=MOVING_BASE)) is Strapdown
     monkeypatch.delenv("INS_COSIM_NATIVE")
     assert type(make_strapdown(c, 0.3, options=MOVING_BASE)) is CompiledStrapdown
+
+
+@pytest.mark.parametrize("lat", [-1.2, -0.3, 0.0, 0.52, 1.45])
+@pytest.mark.parametrize("height", [0.0, 12.0, 3000.0])
+def test_compiled_refresh_gives_the_constants_of_the_numpy_one(lat: float, height: float) -> None:
+    ref, fast = _pair(MOVING_BASE)
+    for nav in (ref, fast):
+        nav.lat, nav.height = lat, height
+        nav.refresh()
+    _close(ref.g, fast.g, ref.g)
+    _close(ref.w_ie, fast.w_ie, 1e-4)
+    for nav in (ref, fast):  # the radii and tan(lat) act through the transport rate
+        nav.step([1e-3, -2e-3, 5e-4], [0.1, 0.2, -0.49], 0.05)
+    for name in ("v_n", "lat", "w_in", "cor", "C_s_n"):
+        want = getattr(ref, name)
+        _close(want, getattr(fast, name), np.abs(want).max())

@@ -26,6 +26,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from cosim.alignment.nav import MOVING_BASE, Mechanisation, Strapdown
 from models import native
+from models.constants import E2, GAMMA_E, K_SOMIGLIANA, M_RATIO, OMEGA_IE, A, F
 
 FloatArray = NDArray[np.float64]
 
@@ -81,15 +82,20 @@ class CompiledStrapdown(Strapdown):
     ----------
     step : ctypes function
         ``strapdown_two_sample_step`` of the compiled library (:func:`make_strapdown`).
+    refresh : ctypes function
+        ``strapdown_refresh`` (the latitude-dependent constants).
     *args, **kwargs
         Those of :class:`~cosim.alignment.nav.Strapdown`.
     """
 
-    def __init__(self, step: Any, *args: Any, **kwargs: Any) -> None:
+    def __init__(self, step: Any, refresh: Any, *args: Any, **kwargs: Any) -> None:
         self._nav = np.zeros(NAV_SIZE)
         self._sums = np.zeros(SUMS_SIZE)
         self._inc = np.zeros(6)
         self._kernel = step
+        self._refresh = refresh
+        self._earth = np.array([A, E2, OMEGA_IE, GAMMA_E, K_SOMIGLIANA, F, M_RATIO])
+        self._earth_ptr = native.pointer(self._earth)
         self._nav_ptr = native.pointer(self._nav)
         self._sums_ptr = native.pointer(self._sums)
         self._dth_ptr = native.pointer(self._inc)
@@ -108,9 +114,13 @@ class CompiledStrapdown(Strapdown):
         return self._nav_ptr
 
     def refresh(self) -> None:
-        """Re-evaluate the latitude-dependent constants (the base class's, into the buffer)."""
-        super().refresh()
-        self._nav[_H_NAV] = -1.0
+        """Re-evaluate the latitude-dependent constants (radii, earth rate, gravity) in C.
+
+        ``strapdown_refresh`` repeats the base class's :meth:`~Strapdown.refresh` (with
+        :func:`models.earth.R_M`, ``R_N``, ``gravity`` and
+        :func:`cosim.alignment.nav.earth_rate`) into the buffer.
+        """
+        self._refresh(self._nav_ptr, self._earth_ptr)
 
     def _run(self, dtheta: ArrayLike, dv: ArrayLike, h: float, sums: int | None) -> None:
         inc = self._inc
@@ -226,12 +236,13 @@ def make_strapdown(
         :func:`models.native.declare` finds the kernel (not with ``INS_COSIM_NATIVE=0``),
         else a :class:`~cosim.alignment.nav.Strapdown`.
     """
-    step = None
+    step = refresh = None
     if options.coning == "two-sample":
         p, d = ctypes.c_void_p, ctypes.c_double
         step = native.declare(
             "strapdown_two_sample_step", [p, p, p, p, d, ctypes.c_int, ctypes.c_long]
         )
-    if step is None:
+        refresh = native.declare("strapdown_refresh", [p, p])
+    if step is None or refresh is None:
         return Strapdown(C_s_n, lat, height, v_n, options=options)
-    return CompiledStrapdown(step, C_s_n, lat, height, v_n, options=options)
+    return CompiledStrapdown(step, refresh, C_s_n, lat, height, v_n, options=options)

@@ -158,3 +158,21 @@ void strapdown_two_sample_step(double *nav, double *sums, const double *dtheta,
         }
     }
 }
+
+/* Strapdown.refresh: the latitude-dependent constants at nav[15] (lat) and nav[16] (height),
+ * with models.earth.R_M, R_N, gravity and cosim.alignment.nav.earth_rate (same expressions,
+ * same order); c: A, E2, OMEGA_IE, GAMMA_E, K_SOMIGLIANA, F, M_RATIO (models.constants). */
+void strapdown_refresh(double *nav, const double *c)
+{
+    const double a = c[0], e2 = c[1], w = c[2], gamma_e = c[3], k = c[4], f = c[5], m = c[6];
+    const double lat = nav[15], h = nav[16], s = sin(lat);
+    nav[57] = a * (1.0 - e2) / pow(1.0 - e2 * s * s, 1.5) + h;
+    nav[58] = a / sqrt(1.0 - e2 * s * s) + h;
+    nav[59] = tan(lat);
+    nav[51] = w * cos(lat), nav[52] = 0.0, nav[53] = -w * sin(lat);
+    nav[54] = 2.0 * nav[51], nav[55] = 2.0 * nav[52], nav[56] = 2.0 * nav[53];
+    const double s2 = s * s;
+    const double g0 = gamma_e * (1.0 + k * s2) / sqrt(1.0 - e2 * s2);
+    nav[60] = g0 * (1.0 - 2.0 / a * (1.0 + f + m - 2.0 * f * s2) * h + 3.0 * h * h / (a * a));
+    nav[71] = -1.0;
+}
