@@ -86,7 +86,12 @@ statement (``INS_COSIM_NATIVE=0``, no library), equal to rounding
 (``tests/test_native_publish.py``). Either way the vector outputs are written in place
 into the block's output buffer while they are its views, so the master reads them as one
 slice (:meth:`models.block.Block.real_reader`); an output rebound from outside is
-assigned a new array instead.
+assigned a new array instead. Once per filter period, ``models/native/transfer_master.c``
+gives the master's state fed to the filter (``transfer_master_state``: attitude, rate
+w.r.t. the earth from the attitude ring, velocity; :meth:`TransferAlignment.master_state_numpy`)
+and what changes with the shown covariance (``transfer_period``: ``P_att``, its inverse,
+flexure, bias and drift outputs; :meth:`TransferAlignment.period_numpy`), one call each,
+equal to rounding (``tests/test_native_master.py``).
 
 Limits: the block must step every macro step (rate 1) with a constant step that divides
 ``period``: its strapdown needs every increment; it starts once it has five master
@@ -115,7 +120,7 @@ from cosim.alignment.transfer_model import (
 )
 from models import native
 from models.block import Block, input_, output, parameter
-from models.constants import ARCMIN, DEG
+from models.constants import ARCMIN, DEG, E2, A
 from models.conventions import dcm_to_euler_3, euler_to_dcm, euler_to_dcm_3, wrap_angle
 
 FloatArray = NDArray[np.float64]
@@ -125,6 +130,15 @@ _ZERO3 = (0.0, 0.0, 0.0)
 PUBLISH_INPUTS = ("rpy_master", "rpy_s_true", "rpy_m_true")
 #: The per-step vector outputs, in the kernel's order (back to back in the output buffer).
 PUBLISH_OUTPUTS = ("rpy_err", "rpy_sigma", "rel_rpy")
+#: The outputs that change with the shown covariance, in the kernel's order (back to back).
+PERIOD_OUTPUTS = (
+    "flex",
+    "flex_sigma",
+    "accel_bias",
+    "accel_bias_sigma",
+    "gyro_drift",
+    "gyro_drift_sigma",
+)
 #: The master attitudes kept for the rate (:func:`~cosim.alignment.transfer_model.master_rate`).
 HISTORY = 5
 _PTR = ctypes.c_void_p
@@ -316,6 +330,32 @@ class TransferAlignment(Block):
             self._c_nav_ptr = native.pointer(self._c_nav)
             self._per_ptr = native.pointer(self._per)
             self._ring_ptrs = [native.pointer(c) for c in self._ring]
+        self._native_period = native.declare(
+            "transfer_period",
+            [_PTR, ctypes.c_int, _PTR, _PTR, _PTR, ctypes.c_double, _PTR, _PTR],
+            ctypes.c_int,
+        )
+        if self._native_period is not None:
+            self._period_io = native.Buffers(self, (), PERIOD_OUTPUTS)
+            lay = self._layout
+            starts = [lay.att.start, lay.nabla.start, lay.eps.start, 7 if lay.flexure else -1]
+            self._period_idx = np.array(starts, dtype=np.intc)
+            self._period_idx_ptr = native.pointer(self._period_idx)
+            self._bias = np.zeros(6)
+            self._bias_ptr = native.pointer(self._bias)
+            self._per_ptr = native.pointer(self._per)
+        self._native_master = native.declare(
+            "transfer_master_state",
+            [_PTR, ctypes.c_int, ctypes.c_int, ctypes.c_double, _PTR]
+            + [ctypes.c_double, ctypes.c_double, _PTR, _PTR],
+        )
+        if self._native_master is not None:
+            self._ring_ptr = native.pointer(self._ring)
+            self._v_io = native.Buffers(self, ("v_master_n",), ())
+            self._earth = np.array([A, E2])
+            self._earth_ptr = native.pointer(self._earth)
+            self._ms_out = np.zeros(12)
+            self._ms_ptr = native.pointer(self._ms_out)
         self.nis = 0.0
         self.stage = 0.0
         self._publish()
@@ -335,7 +375,39 @@ class TransferAlignment(Block):
             )
 
     def _master_state(self) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Newest master attitude (a copy), rate w.r.t. earth (master axes) and velocity."""
+        """:meth:`master_state_numpy`, in one call of ``transfer_master_state`` when compiled."""
+        fn = self._native_master
+        if fn is None:
+            return self.master_state_numpy()
+        v_m = np.asarray(self.v_master_n, dtype=float)
+        fn(
+            self._ring_ptr,
+            self._n % HISTORY,
+            len(self._hist),
+            self._h,
+            self._v_io.input_pointer(),
+            float(self.lat_master),
+            float(self.h_master),
+            self._earth_ptr,
+            self._ms_ptr,
+        )
+        out = self._ms_out.copy()  # the filter gets arrays of its own, as from numpy
+        return out[:9].reshape(3, 3), out[9:], v_m
+
+    def master_state_numpy(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """The master's state for the filter, in numpy (the statement of ``transfer_master``).
+
+        Returns
+        -------
+        c_b_n : ndarray, shape (3, 3)
+            The newest master attitude (a copy).
+        w_eb_b : ndarray, shape (3,)
+            Master rate w.r.t. the earth, master axes [rad/s]: the rate from the attitude
+            history (:func:`~cosim.alignment.transfer_model.master_rate`) plus
+            ``C_b_n^T omega_en_n`` (:func:`~cosim.alignment.nav.nav_rates`).
+        v_m : ndarray, shape (3,)
+            Master velocity, NED [m/s] (the input).
+        """
         c = self._hist[0].copy()
         v_m = np.asarray(self.v_master_n, dtype=float)
         _, w_en = nav_rates(v_m, float(self.lat_master), float(self.h_master))
@@ -374,26 +446,74 @@ class TransferAlignment(Block):
             setattr(self, name, np.array(value, dtype=float))
 
     def _publish_period(self) -> None:
-        """The outputs and constants that change with the shown covariance ``P``."""
+        """The outputs and constants that change with the shown covariance ``P``: one call
+        of ``transfer_period`` when compiled, else :meth:`period_numpy`."""
+        f = self._filter
+        P, x = f.P_show, f.x_show
+        self._P_cached = P
+        self._att_T = None  # the shown attitude error's E^T, made when stage 1 needs it
+        fn = self._native_period
+        if fn is not None:
+            sd = f.nav
+            if sd is not None:
+                self._bias[0:3] = sd.accel_bias
+                self._bias[3:6] = sd.gyro_bias
+            P_c = np.ascontiguousarray(P, dtype=float)  # (no copy: the filter's are)
+            x_c = np.ascontiguousarray(x, dtype=float)
+            ok = fn(
+                native.pointer(P_c),
+                P_c.shape[0],
+                native.pointer(x_c),
+                self._period_idx_ptr,
+                self._bias_ptr,
+                ARCMIN,
+                self._per_ptr,
+                self._period_io.output_pointer(),
+            )
+            if ok == 0:
+                self._period_io.publish()
+                return
+        p_att, p_att_inv, values = self.period_numpy()  # (raises when P_att is singular)
+        self._P_att[...] = p_att
+        self._P_att_inv[...] = p_att_inv
+        for i, name in enumerate(PERIOD_OUTPUTS):
+            self._set_vector(name, values[3 * i : 3 * i + 3])
+
+    def period_numpy(self) -> tuple[FloatArray, FloatArray, FloatArray]:
+        """What changes with the shown covariance, in numpy (the statement of
+        ``transfer_period``).
+
+        Returns
+        -------
+        P_att, P_att_inv : ndarray, shape (3, 3)
+            The attitude error's covariance [rad^2] and its inverse [rad^-2].
+        values : ndarray, shape (18,)
+            The outputs :data:`PERIOD_OUTPUTS` in this order: ``flex``, ``flex_sigma``
+            [arcmin], ``accel_bias``, ``accel_bias_sigma`` [m/s2], ``gyro_drift``,
+            ``gyro_drift_sigma`` [rad/s] (the biases: the mechanisation's plus the shown
+            estimate's).
+        """
         lay, f = self._layout, self._filter
         x_show = f.x_show
         P = f.P_show
-        self._P_cached = P
-        self._P_att[...] = P[lay.att, lay.att]
-        self._P_att_inv[...] = np.linalg.inv(self._P_att)
-        self._att_T = None  # the shown attitude error's E^T, made when stage 1 needs it
-        put = self._set_vector
-        put("accel_bias_sigma", np.sqrt(P[lay.nabla, lay.nabla].diagonal()))
-        put("gyro_drift_sigma", np.sqrt(P[lay.eps, lay.eps].diagonal()))
+        p_att = P[lay.att, lay.att].copy()
         if lay.flexure:
-            put("flex", x_show[7:10] / ARCMIN)
-            put("flex_sigma", np.sqrt(P[7:10, 7:10].diagonal()) / ARCMIN)
+            flex = x_show[7:10] / ARCMIN
+            flex_sigma = np.sqrt(P[7:10, 7:10].diagonal()) / ARCMIN
         else:
-            put("flex", np.zeros(3))
-            put("flex_sigma", np.zeros(3))
+            flex = flex_sigma = np.zeros(3)
         sd = f.nav
-        put("accel_bias", (sd.accel_bias if sd is not None else 0.0) + x_show[lay.nabla])
-        put("gyro_drift", (sd.gyro_bias if sd is not None else 0.0) + x_show[lay.eps])
+        values = np.concatenate(
+            [
+                flex,
+                flex_sigma,
+                (sd.accel_bias if sd is not None else 0.0) + x_show[lay.nabla],
+                np.sqrt(P[lay.nabla, lay.nabla].diagonal()),
+                (sd.gyro_bias if sd is not None else 0.0) + x_show[lay.eps],
+                np.sqrt(P[lay.eps, lay.eps].diagonal()),
+            ]
+        )
+        return p_att, np.linalg.inv(p_att), values
 
     def _publish(self) -> None:
         """Set every output from the filter's shown estimate and the step's inputs."""
