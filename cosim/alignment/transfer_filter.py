@@ -298,20 +298,23 @@ class TransferFilter:
             self._new_period()
             return
         ukf = self._ukf
-        nis = None if self._fine is None else self._fine(ukf, T, Q, R, z, sums)
-        if nis is None:  # numpy (also where the compiled call found P not positive definite)
-            ukf.predict(T, Q=Q, sums=sums)
-            ukf.update(z, R=R)
-            nis = float(ukf.y @ np.linalg.solve(ukf.S, ukf.y))
+        # compiled UKF and mechanisation: the period and its feedback in one call
+        nav = sd.state_pointer if self._compiled else None
+        nis = None if self._fine is None else self._fine(ukf, T, Q, R, z, sums, nav, m1)
+        if nis is None or nav is None:
+            if nis is None:  # numpy (also where the compiled call found P not pos. definite)
+                ukf.predict(T, Q=Q, sums=sums)
+                ukf.update(z, R=R)
+                nis = float(ukf.y @ np.linalg.solve(ukf.S, ukf.y))
+            x = ukf.x.copy()
+            P = self._feedback(x, ukf.P, m1)
+            x_new = np.zeros(lay.n)
+            if lay.flexure:
+                x_new[lay.xi] = x[lay.xi]
+                x_new[lay.dv] = m1 @ x[lay.xi]
+            ukf.x = x_new
+            ukf.P = P
         self.nis = nis
-        x = ukf.x.copy()
-        P = self._feedback(x, ukf.P, m1)
-        x_new = np.zeros(lay.n)
-        if lay.flexure:
-            x_new[lay.xi] = x[lay.xi]
-            x_new[lay.dv] = m1 @ x[lay.xi]
-        ukf.x = x_new
-        ukf.P = P
         self.x_show = ukf.x
         self.P_show = ukf.P
         self._new_period()
@@ -325,7 +328,13 @@ class TransferFilter:
             sd.clear_sums()
 
     def _feedback(self, x: FloatArray, P: FloatArray, m1: FloatArray | None) -> FloatArray:
-        """Correct the mechanisation with the estimate ``x``; return the reset covariance."""
+        """Correct the mechanisation with the estimate ``x``; return the reset covariance.
+
+        In stage 2 with the compiled UKF and mechanisation, ``transfer_ukf_fed_period``
+        (:mod:`cosim.alignment.transfer_ukf_native`) does this and the reset of
+        :meth:`update` in the period's own call; this stays the numpy path and the
+        readable statement.
+        """
         lay, sd = self.layout, self.nav
         x[lay.heading] = wrap_angle(x[lay.heading])
         d_v = x[lay.dv] - (m1 @ x[lay.xi] if lay.flexure else 0.0)

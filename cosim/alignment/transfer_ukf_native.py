@@ -11,6 +11,14 @@ calls leave them (``x``, ``P``, ``x_prior``, ``P_prior``, ``z_pred``, ``S``, ``K
 two agree to rounding (``tests/test_native_ukf.py``). Where a Cholesky factorisation
 fails, the compiled call writes nothing and the numpy calls run, so the error raised is
 the UKF's own.
+
+Given the address of a :class:`~cosim.alignment.nav_compiled.CompiledStrapdown`'s state
+(``nav``), the same call (``transfer_ukf_fed_period``, ``models/native/transfer_feedback.c``)
+also does the period's closed-loop feedback, the twin of ``TransferFilter._feedback`` and
+of the reset that follows it: the mechanisation corrected in place with the posterior,
+``ukf.x`` and ``ukf.P`` the state and covariance after the reset (``x_post``, ``P_post``
+stay the posterior). One ctypes call per period, instead of some 40 numpy operations
+(``tests/test_native_feedback.py``).
 """
 
 from __future__ import annotations
@@ -28,15 +36,18 @@ FloatArray = NDArray[np.float64]
 
 _P, _D, _I = ctypes.c_void_p, ctypes.c_double, ctypes.c_int
 _ARGTYPES = [_P, _P, _P, _P, _P, _P, _P, _P, _D, _I, _I, _I, _P]
+_FED_ARGTYPES = [*_ARGTYPES, _P, _P, _P]  # + nav state, m1 (3 x 6), fed: x_new (n), P (n x n)
 
 
 class CompiledFinePeriod:
-    """Predict + update + NIS of the fine UKF in one call of ``transfer_ukf_period``.
+    """Predict + update + NIS (+ feedback) of the fine UKF in one compiled call.
 
     Parameters
     ----------
     kernel : ctypes function
         ``transfer_ukf_period`` (:func:`make_fine_period`).
+    fed_kernel : ctypes function
+        ``transfer_ukf_fed_period``: the same and the feedback (:func:`make_fine_period`).
     propagate : CompiledPropagate
         The compiled error model; its parameter block (:meth:`pack`) is the kernel's.
     n : int
@@ -47,8 +58,10 @@ class CompiledFinePeriod:
         Index of the heading error in the state.
     """
 
-    def __init__(self, kernel: Any, propagate: Any, n: int, flexure: bool, heading: int) -> None:
-        self._kernel = kernel
+    def __init__(
+        self, kernel: Any, fed_kernel: Any, propagate: Any, n: int, flexure: bool, heading: int
+    ) -> None:
+        self._kernel, self._fed_kernel = kernel, fed_kernel
         self._model = propagate
         self.n, self._flexure, self._heading = n, int(flexure), int(heading)
         self._x = np.zeros(n)
@@ -60,6 +73,9 @@ class CompiledFinePeriod:
         self._weights: tuple[Any, ...] | None = None
         self._ptrs = [native.pointer(a) for a in (self._x, self._P, self._Q, self._R, self._z)]
         self._out_ptr = native.pointer(self._out)
+        self._m1 = np.zeros((3, 6))
+        self._fed = np.zeros(n + n * n)  # x after the reset, reset covariance
+        self._m1_ptr, self._fed_ptr = native.pointer(self._m1), native.pointer(self._fed)
 
     def _bind(self, ukf: UnscentedKalmanFilter) -> tuple[Any, ...]:
         points = ukf.points
@@ -72,9 +88,9 @@ class CompiledFinePeriod:
 
     def __call__(
         self, ukf: UnscentedKalmanFilter, T: float, Q: FloatArray, R: FloatArray, z: FloatArray,
-        sums: Any,
+        sums: Any, nav: int | None = None, m1: FloatArray | None = None,
     ) -> float | None:  # fmt: skip
-        """One period on ``ukf``: its state becomes the posterior.
+        """One period on ``ukf``: its state becomes the posterior (or the state after the reset).
 
         Parameters
         ----------
@@ -90,12 +106,20 @@ class CompiledFinePeriod:
             Velocity match, slave minus master, NED [m/s].
         sums : PeriodSums
             The period's mechanisation sums (with the flexure matrices where used).
+        nav : int, optional
+            Address of a :class:`~cosim.alignment.nav_compiled.CompiledStrapdown`'s state
+            (``state_pointer``): feed the posterior back into it as
+            ``TransferFilter._feedback`` does; ``ukf.x``, ``ukf.P`` become the state and
+            covariance after the reset. None: no feedback.
+        m1 : ndarray, shape (3, 6), optional
+            Flexure matrix at the period's end (with ``nav`` and the flexure states).
 
         Returns
         -------
         float or None
             The NIS ``y^T S^-1 y``; None when a Cholesky factorisation failed (nothing was
-            changed: run the numpy UKF, which raises its own error).
+            changed, the mechanisation neither: run the numpy UKF, which raises its own
+            error).
         """
         n = self.n
         _, Wm, Wc, wm_ptr, wc_ptr = self._bind(ukf)
@@ -106,18 +130,19 @@ class CompiledFinePeriod:
         self._z[:] = z
         par = self._model.pack(sums)
         spread = float(ukf.points.spread)
-        code = self._kernel(
-            *self._ptrs[:5], par, wm_ptr, wc_ptr, spread, n, self._flexure, self._heading,
-            self._out_ptr,
-        )  # fmt: skip
+        args = (*self._ptrs, par, wm_ptr, wc_ptr, spread, n, self._flexure, self._heading)
+        if nav is None:
+            code = self._kernel(*args, self._out_ptr)
+        else:
+            if self._flexure:
+                self._m1[...] = m1
+            code = self._fed_kernel(*args, self._out_ptr, nav, self._m1_ptr, self._fed_ptr)
         if code != 0:
             return None
-        o = self._out.copy()
-        i = 0
-        x_prior = o[i : i + n]
-        i += n
-        P_prior = o[i : i + n * n].reshape(n, n)
-        i += n * n
+        o = self._out.copy()  # the attributes are views of this copy, not of the buffer
+        ukf.x_prior = o[:n]
+        ukf.P_prior = o[n : n + n * n].reshape(n, n)
+        i = n + n * n
         ukf.z_pred = o[i : i + 3]
         ukf.S = o[i + 3 : i + 12].reshape(3, 3)
         i += 12
@@ -125,10 +150,12 @@ class CompiledFinePeriod:
         i += 3 * n
         ukf.y = o[i : i + 3]
         nis = float(o[i + 3])
-        ukf.x_prior, ukf.P_prior = x_prior.copy(), P_prior.copy()
-        ukf.x = self._x.copy()
-        ukf.P = self._P.copy()
-        ukf.x_post, ukf.P_post = ukf.x.copy(), ukf.P.copy()
+        ukf.x_post, ukf.P_post = self._x.copy(), self._P.copy()
+        if nav is None:
+            ukf.x, ukf.P = ukf.x_post.copy(), ukf.P_post.copy()
+        else:
+            fed = self._fed.copy()
+            ukf.x, ukf.P = fed[:n], fed[n:].reshape(n, n)
         return nis
 
 
@@ -157,6 +184,7 @@ def make_fine_period(propagate: Any, n: int, flexure: bool, heading: int) -> Any
     if not hasattr(propagate, "pack"):
         return None
     kernel = native.declare("transfer_ukf_period", _ARGTYPES, ctypes.c_int)
-    if kernel is None:
+    fed_kernel = native.declare("transfer_ukf_fed_period", _FED_ARGTYPES, ctypes.c_int)
+    if kernel is None or fed_kernel is None:
         return None
-    return CompiledFinePeriod(kernel, propagate, n, flexure, heading)
+    return CompiledFinePeriod(kernel, fed_kernel, propagate, n, flexure, heading)

@@ -15,6 +15,7 @@
  * P_prior (n x n), z_pred (3), S (9), K (n x 3), y (3), nis (1).
  * Returns 0, or 1 / 2 / 3 when the Cholesky factorisation of P, of the prior covariance
  * or of S fails (then nothing is written: the caller reruns numpy for its error).
+ * transfer_feedback.c runs this period and the feedback in one call.
  */
 #include <math.h>
 #include <string.h>
@@ -36,6 +37,12 @@ static double wrap(double a)
         r = copysign(0.0, b);
     }
     return PI - r;
+}
+
+/* the same wrap, for the other filter kernels (transfer_feedback.c) */
+double transfer_wrap_angle(double a)
+{
+    return wrap(a);
 }
 
 /* lower Cholesky factor of the n x n matrix a into l; 0, or 1 when not positive definite */
