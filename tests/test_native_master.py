@@ -13,22 +13,18 @@ every rotation), and whole runs with and without the compiled kernels.
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 
 import numpy as np
 import pytest
+from transfer_run import align_block, needs_library, short_master
 
-import cosim
 from cosim.alignment.nav import nav_rates
 from cosim.alignment.transfer import HISTORY, PERIOD_OUTPUTS, TransferAlignment
 from cosim.alignment.transfer_model import master_rate
-from cosim.master import Master
-from cosim.scenario import build_master
 from models import native
 from models.constants import ARCMIN, E2, A
 from models.conventions import euler_to_dcm_3
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "transfer_alignment.toml"
 STOP = 15.0  # the acquisition ends at 5 s at the earliest: both stages run
 RTOL = 1e-12
 EPS = np.finfo(float).eps
@@ -42,22 +38,6 @@ ATOL_RATE = 64.0 * EPS / H
 _P, _I, _D = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
 
 
-def _needs_library() -> None:
-    if native.library() is None:
-        pytest.skip(f"no compiled kernels: {native.status()}")
-
-
-def _master(mp: pytest.MonkeyPatch, env: str, **overrides: object) -> Master:
-    mp.setenv(native.ENV, env)
-    return build_master(cosim.load_scenario(SCENARIO), **{"stop": STOP, **overrides})
-
-
-def _align(master: Master) -> TransferAlignment:
-    block = master.system.blocks["align"].instance
-    assert isinstance(block, TransferAlignment)
-    return block
-
-
 def _period_values(block: TransferAlignment) -> np.ndarray:
     return np.concatenate([getattr(block, n) for n in PERIOD_OUTPUTS])
 
@@ -68,8 +48,8 @@ def compiled_run() -> dict:
     if native.library() is None:
         pytest.skip(f"no compiled kernels: {native.status()}")
     with pytest.MonkeyPatch.context() as mp:
-        master = _master(mp, "1")
-        block = _align(master)
+        master = short_master(mp, "1", STOP)
+        block = align_block(master)
         rec: dict = {"fed": [], "numpy": [], "stage": [], "inputs": [], "period": [], "P": []}
         step = block.do_step
 
@@ -208,13 +188,13 @@ def test_period_kernel_inverse_to_rounding(compiled_run: dict) -> None:
 
 def test_numpy_and_compiled_runs_agree(monkeypatch: pytest.MonkeyPatch) -> None:
     """Whole runs, every kernel off (INS_COSIM_NATIVE=0) vs on: the same alignment."""
-    _needs_library()
+    needs_library()
     runs = {}
     for env in ("0", "1"):
-        master = _master(monkeypatch, env, record_every=1)
+        master = short_master(monkeypatch, env, STOP, record_every=1)
         try:
             result = master.run()
-            assert _align(master).compiled == (env == "1")
+            assert align_block(master).compiled == (env == "1")
         finally:
             master.terminate()
         assert result.status == "completed"

@@ -11,20 +11,15 @@ are rebound from outside (the fallback) gives the same numbers.
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from transfer_run import align_block, needs_library, short_master
 
-import cosim
 from cosim.alignment.transfer import PUBLISH_INPUTS, PUBLISH_OUTPUTS, TransferAlignment
-from cosim.master import Master
-from cosim.scenario import build_master
 from models import native
 from models.constants import ARCMIN
 from models.conventions import euler_to_dcm_3
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "transfer_alignment.toml"
 STOP = 12.0  # the acquisition ends at 5 s at the earliest: both stages run
 RTOL = 1e-12
 #: rpy_err is a difference of two angles of up to pi: their rounding (ulp(pi) = 4.4e-16
@@ -33,22 +28,6 @@ RTOL = 1e-12
 ATOL = np.array([1e-14 / ARCMIN] * 3 + [0.0] * 3 + [1e-14] * 3)
 VECTORS = [v.name for v in TransferAlignment.variables if v.causality == "output" and v.is_vector]
 INPUTS = [v.name for v in TransferAlignment.variables if v.causality == "input"]
-
-
-def _needs_library() -> None:
-    if native.library() is None:
-        pytest.skip(f"no compiled kernels: {native.status()}")
-
-
-def _master(monkeypatch: pytest.MonkeyPatch, env: str, **overrides: object) -> Master:
-    monkeypatch.setenv(native.ENV, env)
-    return build_master(cosim.load_scenario(SCENARIO), **{"stop": STOP, **overrides})
-
-
-def _align(master: Master) -> TransferAlignment:
-    block = master.system.blocks["align"].instance
-    assert isinstance(block, TransferAlignment)
-    return block
 
 
 def _published(block: TransferAlignment) -> np.ndarray:
@@ -67,9 +46,9 @@ def _views_intact(block: TransferAlignment) -> bool:
 
 def test_compiled_equals_numpy_at_every_step(monkeypatch: pytest.MonkeyPatch) -> None:
     """Compiled outputs vs the numpy statement on the same state, step by step."""
-    _needs_library()
-    master = _master(monkeypatch, "1")
-    block = _align(master)
+    needs_library()
+    master = short_master(monkeypatch, "1", STOP)
+    block = align_block(master)
     step = block.do_step
     steps = {0: 0, 1: 0, 2: 0}
     rows: list[np.ndarray] = []  # per step: t, compiled outputs and nees, numpy's
@@ -107,13 +86,13 @@ def test_compiled_equals_numpy_at_every_step(monkeypatch: pytest.MonkeyPatch) ->
 
 def test_numpy_and_compiled_runs_agree(monkeypatch: pytest.MonkeyPatch) -> None:
     """Whole runs, every kernel off (INS_COSIM_NATIVE=0) vs on: the same alignment."""
-    _needs_library()
+    needs_library()
     runs = {}
     for env in ("0", "1"):
-        master = _master(monkeypatch, env, record_every=1)
+        master = short_master(monkeypatch, env, STOP, record_every=1)
         try:
             result = master.run()
-            block = _align(master)
+            block = align_block(master)
             assert block.compiled == (env == "1")
             assert _views_intact(block)  # in place on the numpy path too
         finally:
@@ -145,8 +124,8 @@ def test_numpy_and_compiled_runs_agree(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def _record_inputs(monkeypatch: pytest.MonkeyPatch) -> tuple[list, dict]:
     """The align block's inputs at initialisation and before every step of a run."""
-    master = _master(monkeypatch, "1", stop=8.0)
-    block = _align(master)
+    master = short_master(monkeypatch, "1", stop=8.0)
+    block = align_block(master)
     step = block.do_step
     init = block.exit_initialization_mode
     feed: list = []
@@ -182,7 +161,7 @@ def test_rebound_inputs_and_outputs_give_the_same_numbers(
 ) -> None:
     """The fallback: inputs set as new arrays (gathered), outputs rebound (assigned)."""
     if env == "1":
-        _needs_library()
+        needs_library()
     feed, params = _record_inputs(monkeypatch)
     monkeypatch.setenv(native.ENV, env)
     blocks = [TransferAlignment(), TransferAlignment()]

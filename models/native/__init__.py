@@ -40,8 +40,10 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "kernels.c"
 #: Every C source of the library (``kernels.c``: the truth models; ``strapdown.c``: the
-#: alignment filters' mechanisation; the other files: further filter kernels).
+#: alignment filters' mechanisation; the other files: further filter kernels) ...
 SOURCES = tuple(sorted(HERE.glob("*.c")))
+#: ... and the headers they include (``conventions.h``): hashed with them.
+HEADERS = tuple(sorted(HERE.glob("*.h")))
 BUILD_DIR = HERE / "build"
 #: Environment variable that switches the compiled kernels off when set to ``0``.
 ENV = "INS_COSIM_NATIVE"
@@ -58,10 +60,11 @@ def library_path() -> Path:
     -------
     Path
         ``models/native/build/kernels-<hash>.so``, the hash being the first 16 hex
-        digits of the SHA-256 of the C sources (:data:`SOURCES`, names and contents).
+        digits of the SHA-256 of the C sources and headers (:data:`SOURCES`,
+        :data:`HEADERS`: names and contents).
     """
     sha = hashlib.sha256()
-    for source in SOURCES:
+    for source in SOURCES + HEADERS:
         sha.update(source.name.encode() + b"\0" + source.read_bytes() + b"\0")
     digest = sha.hexdigest()[:16]
     return BUILD_DIR / f"kernels-{digest}.so"

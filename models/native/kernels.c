@@ -9,6 +9,8 @@
  */
 #include <math.h>
 
+#include "conventions.h"
+
 static const double TWO_PI = 6.283185307179586476925286766559; /* 2 * math.pi */
 
 /* ------------------------------------------------------------------ small helpers */
@@ -71,23 +73,6 @@ static void rotvec_dcm_jacobian(const double *phi, double *c, double *jr)
     }
 }
 
-/* models.conventions.euler_to_dcm_3: C_b_n = Rz(yaw) Ry(pitch) Rx(roll) */
-static void euler_to_dcm(const double *rpy, double *c)
-{
-    double cr = cos(rpy[0]), sr = sin(rpy[0]);
-    double cp = cos(rpy[1]), sp = sin(rpy[1]);
-    double cy = cos(rpy[2]), sy = sin(rpy[2]);
-    c[0] = cp * cy;
-    c[1] = sr * sp * cy - cr * sy;
-    c[2] = cr * sp * cy + sr * sy;
-    c[3] = cp * sy;
-    c[4] = sr * sp * sy + cr * cy;
-    c[5] = cr * sp * sy - sr * cy;
-    c[6] = -sp;
-    c[7] = sr * cp;
-    c[8] = cr * cp;
-}
-
 /* ------------------------------------------------------------------ lever arm
  * par:  r0 (0:3), R0 row-major (3:12), C_s_d row-major (12:21), flexure (21),
  *       path rel_tol (22), omega_ie [rad/s] (23), dt_truth [s] (24)
@@ -148,7 +133,7 @@ static void lever_finish(const double *par, const double *in, double lat, const 
         out[3 + i] = f_s[i];
     }
     double cbn[9], csb[9], csn[9];
-    euler_to_dcm(in + 15, cbn);
+    nc_euler_to_dcm(in + 15, cbn);
     if (c_d_b != 0)
         matmul3(c_d_b, csd, csb);
     else
@@ -436,7 +421,7 @@ void ship_truth_steps(const double *par, const double *tt, const double *wts,
                 dd[i] = -amp[i] * (w[i] * w[i]) * sa;
             }
             double c[9];
-            euler_to_dcm(rpy, c);
+            nc_euler_to_dcm(rpy, c);
             double cr = cos(rpy[0]), sr = sin(rpy[0]), cp = cos(rpy[1]), sp = sin(rpy[1]);
             double rd = d[0], pd = d[1], yd = d[2];
             double w_nb[3] = {d[0] - d[2] * sp, d[1] * cr + d[2] * sr * cp,

@@ -23,7 +23,8 @@
  */
 #include <math.h>
 
-double transfer_wrap_angle(double a);
+#include "conventions.h"
+
 int transfer_ukf_period(double *x, double *P, const double *Q, const double *R, const double *z,
                         const double *par, const double *Wm, const double *Wc, double spread,
                         int n, int flexure, int heading, double *out);
@@ -42,7 +43,7 @@ void transfer_feedback(double *nav, const double *x, const double *P, const doub
     double *x_new = fed, *Pn = fed + n;
     for (int i = 0; i < n; i++)
         xw[i] = x[i];
-    xw[heading] = transfer_wrap_angle(x[heading]);
+    xw[heading] = nc_wrap_angle(x[heading]);
     /* d_v = x[dv] - m1 @ x[xi] (or - 0.0) */
     if (flexure)
         for (int i = 0; i < 3; i++) {

@@ -20,6 +20,8 @@
  */
 #include <math.h>
 
+#include "conventions.h"
+
 /* models.earth.R_M and R_N at latitude lat (same expressions, same order) */
 static double meridian_radius(double lat, double a, double e2)
 {
@@ -31,23 +33,6 @@ static double transverse_radius(double lat, double a, double e2)
 {
     double s = sin(lat);
     return a / sqrt(1.0 - e2 * s * s);
-}
-
-/* models.conventions.euler_to_dcm: c = Rz(yaw) Ry(pitch) Rx(roll), row-major */
-static void euler_dcm(const double *rpy, double *c)
-{
-    double cr = cos(rpy[0]), sr = sin(rpy[0]);
-    double cp = cos(rpy[1]), sp = sin(rpy[1]);
-    double cy = cos(rpy[2]), sy = sin(rpy[2]);
-    c[0] = cp * cy;
-    c[1] = sr * sp * cy - cr * sy;
-    c[2] = cr * sp * cy + sr * sy;
-    c[3] = cp * sy;
-    c[4] = sr * sp * sy + cr * cy;
-    c[5] = cr * sp * sy - sr * cy;
-    c[6] = -sp;
-    c[7] = sr * cp;
-    c[8] = cr * cp;
 }
 
 /* models.conventions.rotvec_to_dcm: I + s1 [v x] + s2 [v x]^2, series below |v| = 1e-4 */
@@ -123,7 +108,7 @@ void transfer_propagate(const double *x, double *out, const double *p, long m, i
             dwt[i] = d_win[i] * T;
         }
         double E0[9], R[9], E1[9], EbT[9];
-        euler_dcm(att, E0);
+        nc_euler_to_dcm(att, E0);
         /* rot = eps @ c_int.T + E0 @ w_in - w_in - E0 @ (d_win T) */
         double ec[3], ew[3], ed[3], rot[3];
         matvec(c_int, eps, 3, 3, ec);

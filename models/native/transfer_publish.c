@@ -18,24 +18,8 @@
  */
 #include <math.h>
 
-static const double PI = 3.141592653589793; /* math.pi */
+#include "conventions.h"
 
-/* models.conventions.euler_to_dcm_3: C_b_n = Rz(yaw) Ry(pitch) Rx(roll) */
-static void tp_euler_to_dcm(const double *rpy, double *c)
-{
-    double cr = cos(rpy[0]), sr = sin(rpy[0]);
-    double cp = cos(rpy[1]), sp = sin(rpy[1]);
-    double cy = cos(rpy[2]), sy = sin(rpy[2]);
-    c[0] = cp * cy;
-    c[1] = sr * sp * cy - cr * sy;
-    c[2] = cr * sp * cy + sr * sy;
-    c[3] = cp * sy;
-    c[4] = sr * sp * sy + cr * cy;
-    c[5] = cr * sp * sy - sr * cy;
-    c[6] = -sp;
-    c[7] = sr * cp;
-    c[8] = cr * cp;
-}
 
 /* o = A^T B (row-major 3x3) */
 static void tp_tmul(const double *a, const double *b, double *o)
@@ -61,26 +45,13 @@ static void tp_dcm_to_euler(const double *c, double *rpy)
     rpy[2] = atan2(c[3], c[0]);
 }
 
-/* models.conventions.wrap_angle of a float: pi - (pi - a) % (2 pi), Python's float % */
-static double tp_wrap(double a)
-{
-    double w = 2.0 * PI, m = fmod(PI - a, w);
-    if (m != 0.0) {
-        if ((w < 0.0) != (m < 0.0))
-            m += w;
-    } else {
-        m = copysign(0.0, w);
-    }
-    return PI - m;
-}
-
 double transfer_publish(const double *in, const double *c_nav, int mode, const double *per,
                         double *c_m, double *out)
 {
     const double *att_t = per, *p_att = per + 9, *p_inv = per + 18;
     double arcmin = per[27];
     double c_mt[9], c_s[9], c_est[9], m[9], rel_est[3], r[3], rel[3];
-    tp_euler_to_dcm(in, c_m);
+    nc_euler_to_dcm(in, c_m);
     if (mode == 0) {
         for (int i = 0; i < 9; i++)
             c_est[i] = c_m[i];
@@ -90,14 +61,14 @@ double transfer_publish(const double *in, const double *c_nav, int mode, const d
         for (int i = 0; i < 9; i++)
             c_est[i] = c_nav[i];
     }
-    tp_euler_to_dcm(in + 6, c_mt); /* C_m, used transposed */
-    tp_euler_to_dcm(in + 3, c_s);
+    nc_euler_to_dcm(in + 6, c_mt); /* C_m, used transposed */
+    nc_euler_to_dcm(in + 3, c_s);
     tp_tmul(c_mt, c_est, m);
     tp_dcm_to_euler(m, rel_est);
     tp_tmul(c_mt, c_s, m);
     tp_dcm_to_euler(m, r);
     for (int i = 0; i < 3; i++)
-        out[i] = tp_wrap(rel_est[i] - r[i]) / arcmin;
+        out[i] = nc_wrap_angle(rel_est[i] - r[i]) / arcmin;
     /* B = euler_rate_matrix_inv(rel_est) C_m^T; diag(B P_att B^T) */
     double cp = cos(rel_est[1]), tp = tan(rel_est[1]);
     double cy = cos(rel_est[2]), sy = sin(rel_est[2]);

@@ -20,30 +20,11 @@
 #include <math.h>
 #include <string.h>
 
+#include "conventions.h"
+
 void transfer_propagate(const double *x, double *out, const double *p, long m, int n,
                         int flexure);
 
-#define PI 3.141592653589793
-#define TWO_PI 6.283185307179586
-
-/* numpy's np.pi - np.mod(np.pi - a, 2 pi): Python-style modulo (sign of the divisor) */
-static double wrap(double a)
-{
-    double b = TWO_PI, r = fmod(PI - a, b);
-    if (r != 0.0) {
-        if ((b < 0.0) != (r < 0.0))
-            r += b;
-    } else {
-        r = copysign(0.0, b);
-    }
-    return PI - r;
-}
-
-/* the same wrap, for the other filter kernels (transfer_feedback.c) */
-double transfer_wrap_angle(double a)
-{
-    return wrap(a);
-}
 
 /* lower Cholesky factor of the n x n matrix a into l; 0, or 1 when not positive definite */
 static int cholesky(const double *a, double *l, int n)
@@ -118,8 +99,8 @@ static void angle_mean(const double *s, const double *w, int m, int n, int h, do
     }
     double ref = atan2(ss, cc), dev = 0.0;
     for (int i = 0; i < m; i++)
-        dev += w[i] * wrap(s[i * n + h] - ref);
-    mean[h] = wrap(ref + dev);
+        dev += w[i] * nc_wrap_angle(s[i * n + h] - ref);
+    mean[h] = nc_wrap_angle(ref + dev);
 }
 
 int transfer_ukf_period(double *x, double *P, const double *Q, const double *R, const double *z,
@@ -137,7 +118,7 @@ int transfer_ukf_period(double *x, double *P, const double *Q, const double *R, 
     for (int i = 0; i < m; i++) {
         for (int k = 0; k < n; k++)
             r[i * n + k] = sig_f[i * n + k] - xp[k];
-        r[i * n + heading] = wrap(r[i * n + heading]);
+        r[i * n + heading] = nc_wrap_angle(r[i * n + heading]);
     }
     for (int a = 0; a < n; a++)
         for (int b = 0; b < n; b++) {
@@ -175,7 +156,7 @@ int transfer_ukf_period(double *x, double *P, const double *Q, const double *R, 
     for (int i = 0; i < m; i++) {
         for (int k = 0; k < n; k++)
             r[i * n + k] = sig[i * n + k] - xp[k];
-        r[i * n + heading] = wrap(r[i * n + heading]);
+        r[i * n + heading] = nc_wrap_angle(r[i * n + heading]);
     }
     for (int a = 0; a < n; a++)
         for (int b = 0; b < 3; b++) {
