@@ -82,6 +82,9 @@ class UnpackedFolders:
                 except Exception as exc:
                     shutil.rmtree(folder, ignore_errors=True)
                     raise FmuError(f"cannot unpack FMU '{fmu}': {exc}") from exc
+                except BaseException:  # Ctrl-C while unpacking: not yet ours to remove at exit
+                    shutil.rmtree(folder, ignore_errors=True)
+                    raise
             self._users[folder] = self._users.get(folder, 0) + 1
         return folder
 
