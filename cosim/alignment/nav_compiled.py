@@ -47,7 +47,8 @@ NAV_FIELDS: dict[str, tuple[int, tuple[int, ...]]] = {
     "_cor_ie": (54, (3,)),
 }
 NAV_SCALARS = {"lat": 15, "height": 16, "_rm": 57, "_rn": 58, "_tan": 59, "g": 60}
-_HAS_PREV, _COUNT, _NAV_ROT, _H_NAV = 50, 61, 62, 71
+#: Doubles in the state buffer (the previous increments, the step count and the cached
+#: navigation-frame rotation follow the fields above: ``strapdown.c``'s header).
 NAV_SIZE = 72
 #: Period-sum buffer: T, dv_f, c_int (3x3), v_int, w_in T, cor T.
 SUMS_SIZE = 22
@@ -128,18 +129,7 @@ class CompiledStrapdown(Strapdown):
         inc[3:] = dv
         self._kernel(self._nav_ptr, sums, self._dth_ptr, self._dv_ptr, h, self._flags, self._every)
 
-    def step(self, dtheta: ArrayLike, dv: ArrayLike, h: float) -> None:
-        """Advance by one step of measured increments (see the base class).
-
-        Parameters
-        ----------
-        dtheta : array_like, shape (3,)
-            Angle increment over the step, sensor axes [rad].
-        dv : array_like, shape (3,)
-            Velocity increment, sensor axes [m/s].
-        h : float
-            Step [s].
-        """
+    def step(self, dtheta: ArrayLike, dv: ArrayLike, h: float) -> None:  # (the base's doc)
         self._run(dtheta, dv, h, None)
 
     def step_summed(self, dtheta: ArrayLike, dv: ArrayLike, h: float) -> None:
@@ -179,31 +169,11 @@ class CompiledStrapdown(Strapdown):
         """Start new period sums (all zero)."""
         self._sums[:] = 0.0
 
-    def _rot_nav(self, zeta: FloatArray, h: float) -> FloatArray:  # the C step caches it
-        raise NotImplementedError("CompiledStrapdown steps in C")
-
 
 for _name, (_offset, _shape) in NAV_FIELDS.items():
     setattr(CompiledStrapdown, _name, _vector(_offset, _shape))
 for _name, _offset in NAV_SCALARS.items():
     setattr(CompiledStrapdown, _name, _scalar(_offset))
-
-
-def _prev_get(self: CompiledStrapdown) -> tuple[float, ...] | None:
-    return tuple(self._nav[44:50].tolist()) if self._nav[_HAS_PREV] else None
-
-
-def _prev_put(self: CompiledStrapdown, value: tuple[float, ...] | None) -> None:
-    self._nav[_HAS_PREV] = 0.0 if value is None else 1.0
-    if value is not None:
-        self._nav[44:50] = value
-
-
-CompiledStrapdown._prev = property(_prev_get, _prev_put)  # type: ignore[assignment]
-CompiledStrapdown._count = property(  # type: ignore[assignment]
-    lambda self: int(self._nav[_COUNT]),
-    lambda self, value: self._nav.__setitem__(_COUNT, float(value)),
-)
 
 
 def make_strapdown(

@@ -318,17 +318,18 @@ class TransferAlignment(Block):
         self._per[27] = ARCMIN
         self._P_att = self._per[9:18].reshape(3, 3)
         self._P_att_inv = self._per[18:27].reshape(3, 3)
+        self._per_ptr = native.pointer(self._per)
         # the vector outputs back to the output buffer's views (a re-initialised block)
         for name, view in self._out_views.items():
             setattr(self, name, view)
         self._io = native.Buffers(self, PUBLISH_INPUTS, PUBLISH_OUTPUTS)
+        self._period_io = native.Buffers(self, (), PERIOD_OUTPUTS)
         self._native_publish = native.declare(
             "transfer_publish", [_PTR, _PTR, ctypes.c_int, _PTR, _PTR, _PTR], ctypes.c_double
         )
         if self._native_publish is not None:
             self._c_nav = np.zeros((3, 3))
             self._c_nav_ptr = native.pointer(self._c_nav)
-            self._per_ptr = native.pointer(self._per)
             self._ring_ptrs = [native.pointer(c) for c in self._ring]
         self._native_period = native.declare(
             "transfer_period",
@@ -336,14 +337,12 @@ class TransferAlignment(Block):
             ctypes.c_int,
         )
         if self._native_period is not None:
-            self._period_io = native.Buffers(self, (), PERIOD_OUTPUTS)
             lay = self._layout
             starts = [lay.att.start, lay.nabla.start, lay.eps.start, 7 if lay.flexure else -1]
             self._period_idx = np.array(starts, dtype=np.intc)
             self._period_idx_ptr = native.pointer(self._period_idx)
             self._bias = np.zeros(6)
             self._bias_ptr = native.pointer(self._bias)
-            self._per_ptr = native.pointer(self._per)
         self._native_master = native.declare(
             "transfer_master_state",
             [_PTR, ctypes.c_int, ctypes.c_int, ctypes.c_double, _PTR]
@@ -436,15 +435,6 @@ class TransferAlignment(Block):
         self.stage = f.stage
         self._publish()
 
-    def _set_vector(self, name: str, value: FloatArray) -> None:
-        """Output ``name`` := ``value``: in place while it is the output buffer's view (the
-        master reads the buffer as one slice), else as a new array."""
-        view = self._out_views[name]
-        if getattr(self, name) is view:
-            view[...] = value
-        else:
-            setattr(self, name, np.array(value, dtype=float))
-
     def _publish_period(self) -> None:
         """The outputs and constants that change with the shown covariance ``P``: one call
         of ``transfer_period`` when compiled, else :meth:`period_numpy`."""
@@ -476,8 +466,12 @@ class TransferAlignment(Block):
         p_att, p_att_inv, values = self.period_numpy()  # (raises when P_att is singular)
         self._P_att[...] = p_att
         self._P_att_inv[...] = p_att_inv
-        for i, name in enumerate(PERIOD_OUTPUTS):
-            self._set_vector(name, values[3 * i : 3 * i + 3])
+        out = self._period_io.output_array()
+        if out is not None:  # in place: the master reads the buffer as one slice
+            out[...] = values
+        else:
+            for i, name in enumerate(PERIOD_OUTPUTS):
+                setattr(self, name, values[3 * i : 3 * i + 3])
 
     def period_numpy(self) -> tuple[FloatArray, FloatArray, FloatArray]:
         """What changes with the shown covariance, in numpy (the statement of
