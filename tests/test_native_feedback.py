@@ -25,12 +25,11 @@ bounded by it), as in ``tests/test_native_ukf.py``.
 from __future__ import annotations
 
 import ctypes
-from pathlib import Path
 
 import numpy as np
 import pytest
+from transfer_run import needs_library, runs_both_ways
 
-import cosim
 from cosim.alignment.nav import MOVING_BASE, Strapdown
 from cosim.alignment.nav_compiled import NAV_FIELDS, NAV_SCALARS, CompiledStrapdown, make_strapdown
 from cosim.alignment.transfer import TransferAlignment
@@ -42,13 +41,11 @@ from cosim.alignment.transfer_model import (
     reset_jacobian,
 )
 from cosim.estimation.checks import CovarianceError
-from cosim.scenario import build_master
 from models import native
 from models.constants import DEG
 from models.conventions import euler_to_dcm, wrap_angle
 from models.lever_arm import r0_matrix
 
-SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "transfer_alignment.toml"
 LAT = 30.0 * DEG
 R0 = np.array([10.0, 10.0, 5.0])
 REL = 1e-12
@@ -59,11 +56,6 @@ V_M = np.array([3.0, 1.0, 0.0])
 CORRECTED = ("C_s_n", "v_n", "v_prev", "lat", "gyro_bias", "accel_bias")
 FIELDS = tuple(NAV_FIELDS) + tuple(NAV_SCALARS)
 LAYOUTS = pytest.mark.parametrize("flexure", [True, False], ids=["19 states", "13 states"])
-
-
-def _needs_library() -> None:
-    if native.library() is None:
-        pytest.skip(f"no compiled kernels: {native.status()}")
 
 
 def _state(layout: StateLayout, heading: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -128,7 +120,7 @@ def _navs() -> tuple[Strapdown, Strapdown]:
 @LAYOUTS
 @pytest.mark.parametrize("heading", [0.3, 3.6, -3.5], ids=["0.3", "3.6 wraps", "-3.5 wraps"])
 def test_the_kernel_feeds_back_as_numpy(flexure: bool, heading: float) -> None:
-    _needs_library()
+    needs_library()
     layout = StateLayout(flexure)
     p, i = ctypes.c_void_p, ctypes.c_int
     kernel = native.declare("transfer_feedback", [p, p, p, p, i, i, i, p])
@@ -177,7 +169,7 @@ def _stage2(flexure: bool, compiled: bool, monkeypatch: pytest.MonkeyPatch) -> T
 def test_a_fed_period_equals_the_period_and_the_numpy_feedback(
     flexure: bool, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    _needs_library()
+    needs_library()
     layout = StateLayout(flexure)
     fed, ref = (_stage2(flexure, compiled, monkeypatch) for compiled in (True, False))
     x, P = _state(layout, 0.2, seed=2)
@@ -200,7 +192,7 @@ def test_a_fed_period_equals_the_period_and_the_numpy_feedback(
 def test_a_failed_fed_period_changes_nothing_and_numpy_raises(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    _needs_library()
+    needs_library()
     filt = _stage2(True, True, monkeypatch)
     filt.x_show[:] = _state(StateLayout(True), 0.2, seed=3)[0]  # an estimate to feed back
     filt.P_show[5, 5] = -1e-6  # the UKF's covariance, no longer positive definite
@@ -214,21 +206,12 @@ def test_a_failed_fed_period_changes_nothing_and_numpy_raises(
 
 def test_compiled_and_numpy_runs_agree(monkeypatch: pytest.MonkeyPatch) -> None:
     """20 s of the scenario, every kernel on vs off: the same alignment."""
-    _needs_library()
-    runs = {}
-    for env in ("0", "1"):
-        monkeypatch.setenv(native.ENV, env)
-        master = build_master(cosim.load_scenario(SCENARIO), stop=20.0, record_every=1)
-        try:
-            result = master.run()
-            block = master.system.blocks["align"].instance
-            assert isinstance(block, TransferAlignment)
-            assert isinstance(block.estimator.nav, CompiledStrapdown) == (env == "1")
-        finally:
-            master.terminate()
-        assert result.status == "completed"
-        runs[env] = result.data
-    a, b = runs["0"], runs["1"]
+    needs_library()
+
+    def check(block: TransferAlignment, compiled: bool) -> None:
+        assert isinstance(block.estimator.nav, CompiledStrapdown) == compiled
+
+    a, b = runs_both_ways(monkeypatch, 20.0, check)
     assert np.count_nonzero(a["align.stage"] == 2.0) > 100  # 15 s of fine alignment
     # rounding of the kernels' sums against BLAS's, amplified by the filter's updates (its
     # innovation covariances are small): at most 1.3e-9 arcmin, in the acquisition, on

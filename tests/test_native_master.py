@@ -16,7 +16,7 @@ import ctypes
 
 import numpy as np
 import pytest
-from transfer_run import align_block, needs_library, short_master
+from transfer_run import align_block, needs_library, runs_both_ways, short_master
 
 from cosim.alignment.nav import nav_rates
 from cosim.alignment.transfer import HISTORY, PERIOD_OUTPUTS, TransferAlignment
@@ -189,17 +189,11 @@ def test_period_kernel_inverse_to_rounding(compiled_run: dict) -> None:
 def test_numpy_and_compiled_runs_agree(monkeypatch: pytest.MonkeyPatch) -> None:
     """Whole runs, every kernel off (INS_COSIM_NATIVE=0) vs on: the same alignment."""
     needs_library()
-    runs = {}
-    for env in ("0", "1"):
-        master = short_master(monkeypatch, env, STOP, record_every=1)
-        try:
-            result = master.run()
-            assert align_block(master).compiled == (env == "1")
-        finally:
-            master.terminate()
-        assert result.status == "completed"
-        runs[env] = result.data
-    a, b = runs["0"], runs["1"]
+
+    def check(block: TransferAlignment, compiled: bool) -> None:
+        assert block.compiled == compiled
+
+    a, b = runs_both_ways(monkeypatch, STOP, check)
     assert set(a["align.stage"]) == {0.0, 1.0, 2.0}
     # Every kernel switches (mechanisation, error model, UKF, outputs): their sums differ
     # from numpy's (BLAS) by rounding, which the filter's updates amplify (they divide by

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from transfer_run import align_block, needs_library, short_master
+from transfer_run import align_block, needs_library, runs_both_ways, short_master
 
 from cosim.alignment.transfer import PUBLISH_INPUTS, PUBLISH_OUTPUTS, TransferAlignment
 from models import native
@@ -87,19 +87,12 @@ def test_compiled_equals_numpy_at_every_step(monkeypatch: pytest.MonkeyPatch) ->
 def test_numpy_and_compiled_runs_agree(monkeypatch: pytest.MonkeyPatch) -> None:
     """Whole runs, every kernel off (INS_COSIM_NATIVE=0) vs on: the same alignment."""
     needs_library()
-    runs = {}
-    for env in ("0", "1"):
-        master = short_master(monkeypatch, env, STOP, record_every=1)
-        try:
-            result = master.run()
-            block = align_block(master)
-            assert block.compiled == (env == "1")
-            assert _views_intact(block)  # in place on the numpy path too
-        finally:
-            master.terminate()
-        assert result.status == "completed"
-        runs[env] = result.data
-    a, b = runs["0"], runs["1"]
+
+    def check(block: TransferAlignment, compiled: bool) -> None:
+        assert block.compiled == compiled
+        assert _views_intact(block)  # in place on the numpy path too
+
+    a, b = runs_both_ways(monkeypatch, STOP, check)
     assert set(a["align.stage"]) == {0.0, 1.0, 2.0}
     # The filter's own kernels (mechanisation, error model) switch too: their 3x3
     # products differ from numpy's (BLAS) by rounding, which the filter amplifies (its

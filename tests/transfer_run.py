@@ -1,14 +1,16 @@
 """Shared by the tests of the transfer filter's kernels: a short transfer-alignment run.
 
-Not a test module: ``tests/test_native_publish.py`` and ``tests/test_native_master.py``
-build the seed 001 scenario, shortened, with the compiled kernels on or off, and reach its
-``TransferAlignment`` block.
+Not a test module: ``tests/test_native_publish.py``, ``test_native_master.py`` and
+``test_native_feedback.py`` build the seed 001 scenario, shortened, with the compiled
+kernels on or off, and reach its ``TransferAlignment`` block.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import cosim
@@ -38,3 +40,35 @@ def align_block(master: Master) -> TransferAlignment:
     block = master.system.blocks["align"].instance
     assert isinstance(block, TransferAlignment)
     return block
+
+
+def runs_both_ways(
+    mp: pytest.MonkeyPatch, stop: float, check: Callable[[TransferAlignment, bool], None]
+) -> tuple[np.ndarray, np.ndarray]:
+    """The short run with every kernel off (``INS_COSIM_NATIVE=0``), then on.
+
+    Parameters
+    ----------
+    mp : pytest.MonkeyPatch
+        Sets the switch.
+    stop : float
+        Stop time [s] (every step recorded).
+    check : callable ``check(block, compiled)``
+        Asserts on the filter block after each run (``compiled``: the kernels were on).
+
+    Returns
+    -------
+    numpy, compiled : structured ndarray
+        The two recordings.
+    """
+    runs = {}
+    for env in ("0", "1"):
+        master = short_master(mp, env, stop, record_every=1)
+        try:
+            result = master.run()
+            check(align_block(master), env == "1")
+        finally:
+            master.terminate()
+        assert result.status == "completed"
+        runs[env] = result.data
+    return runs["0"], runs["1"]
