@@ -45,8 +45,7 @@ def _period_values(block: TransferAlignment) -> np.ndarray:
 @pytest.fixture(scope="module")
 def compiled_run() -> dict:
     """A compiled 15 s run: what the filter got at each period and numpy's on that state."""
-    if native.library() is None:
-        pytest.skip(f"no compiled kernels: {native.status()}")
+    needs_library()
     with pytest.MonkeyPatch.context() as mp:
         master = short_master(mp, "1", STOP)
         block = align_block(master)

@@ -1,11 +1,20 @@
-/* What several kernels share: formulas of models.conventions, in the same expressions and
- * the same order as the numpy code (static inline: each C file keeps its own copy). */
+/* What several kernels share: a 3x3 product and formulas of models.conventions, in the same
+ * expressions and the same order as the numpy code (static inline: each C file keeps its
+ * own copy). */
 #ifndef INS_COSIM_NATIVE_CONVENTIONS_H
 #define INS_COSIM_NATIVE_CONVENTIONS_H
 
 #include <math.h>
 
 #define NC_PI 3.141592653589793 /* math.pi */
+
+/* o = a b, 3x3 row-major (o distinct from a and b), summed k = 0, 1, 2 */
+static inline void nc_matmul3(const double *a, const double *b, double *o)
+{
+    for (int i = 0; i < 3; i++)
+        for (int j = 0; j < 3; j++)
+            o[3 * i + j] = a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j];
+}
 
 /* models.conventions.euler_to_dcm(_3): C_b_n = Rz(yaw) Ry(pitch) Rx(roll), row-major */
 static inline void nc_euler_to_dcm(const double *rpy, double *c)

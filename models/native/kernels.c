@@ -38,14 +38,6 @@ static void matvec3(const double *m, const double *v, double *o)
         o[i] = m[3 * i] * v[0] + m[3 * i + 1] * v[1] + m[3 * i + 2] * v[2];
 }
 
-/* o = A @ B (3x3, row-major) */
-static void matmul3(const double *a, const double *b, double *o)
-{
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            o[3 * i + j] = a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j];
-}
-
 static double norm3(const double *v) { return sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2]); }
 
 /* models.conventions.rotvec_to_dcm_and_jacobian of one vector: C = exp([phi x]), J_r */
@@ -135,11 +127,11 @@ static void lever_finish(const double *par, const double *in, double lat, const 
     double cbn[9], csb[9], csn[9];
     nc_euler_to_dcm(in + 15, cbn);
     if (c_d_b != 0)
-        matmul3(c_d_b, csd, csb);
+        nc_matmul3(c_d_b, csd, csb);
     else
         for (int i = 0; i < 9; i++)
             csb[i] = csd[i];
-    matmul3(cbn, csb, csn);
+    nc_matmul3(cbn, csb, csn);
     out[12] = atan2(csn[7], csn[8]);
     out[13] = atan2(-csn[6], hypot(csn[7], csn[8]));
     out[14] = atan2(csn[3], csn[0]);

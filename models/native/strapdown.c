@@ -21,6 +21,8 @@
 #include <math.h>
 #include <stddef.h>
 
+#include "conventions.h"
+
 static void rotvec_dcm(double x, double y, double z, double *r)
 {
     double a2 = x * x + y * y + z * z, s1, s2;
@@ -41,14 +43,6 @@ static void rotvec_dcm(double x, double y, double z, double *r)
     r[6] = s2 * x * z - s1 * y;
     r[7] = s2 * y * z + s1 * x;
     r[8] = 1.0 - s2 * (x * x + y * y);
-}
-
-/* c = a b, 3x3 row-major (c distinct from a and b) */
-static void matmul3(const double *a, const double *b, double *c)
-{
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            c[3 * i + j] = a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j];
 }
 
 void strapdown_two_sample_step(double *nav, double *sums, const double *dtheta,
@@ -132,8 +126,8 @@ void strapdown_two_sample_step(double *nav, double *sums, const double *dtheta,
     v[0] = w0, v[1] = w1, v[2] = w2;
     double body[9], left[9];
     rotvec_dcm(phi0, phi1, phi2, body);
-    matmul3(nav_rot, Cp, left);
-    matmul3(left, body, C);
+    nc_matmul3(nav_rot, Cp, left);
+    nc_matmul3(left, body, C);
     nav[61] += 1.0;
     if (every > 0 && fmod(nav[61], (double)every) == 0.0) { /* 1.5 C - 0.5 C C^T C */
         double cct[9], ccc[9];
@@ -141,7 +135,7 @@ void strapdown_two_sample_step(double *nav, double *sums, const double *dtheta,
             for (int j = 0; j < 3; j++)
                 cct[3 * i + j] = C[3 * i] * C[3 * j] + C[3 * i + 1] * C[3 * j + 1]
                                  + C[3 * i + 2] * C[3 * j + 2];
-        matmul3(cct, C, ccc);
+        nc_matmul3(cct, C, ccc);
         for (int i = 0; i < 9; i++)
             C[i] = 1.5 * C[i] - 0.5 * ccc[i];
     }

@@ -29,14 +29,6 @@ static void tp_tmul(const double *a, const double *b, double *o)
             o[3 * i + j] = a[i] * b[j] + a[3 + i] * b[3 + j] + a[6 + i] * b[6 + j];
 }
 
-/* o = A B (row-major 3x3) */
-static void tp_mul(const double *a, const double *b, double *o)
-{
-    for (int i = 0; i < 3; i++)
-        for (int j = 0; j < 3; j++)
-            o[3 * i + j] = a[3 * i] * b[j] + a[3 * i + 1] * b[3 + j] + a[3 * i + 2] * b[6 + j];
-}
-
 /* models.conventions.dcm_to_euler_3 */
 static void tp_dcm_to_euler(const double *c, double *rpy)
 {
@@ -56,7 +48,7 @@ double transfer_publish(const double *in, const double *c_nav, int mode, const d
         for (int i = 0; i < 9; i++)
             c_est[i] = c_m[i];
     } else if (mode == 1) {
-        tp_mul(att_t, c_nav, c_est);
+        nc_matmul3(att_t, c_nav, c_est);
     } else {
         for (int i = 0; i < 9; i++)
             c_est[i] = c_nav[i];
@@ -78,7 +70,7 @@ double transfer_publish(const double *in, const double *c_nav, int mode, const d
         for (int j = 0; j < 3; j++)
             b[3 * i + j] = minv[3 * i] * c_mt[3 * j] + minv[3 * i + 1] * c_mt[3 * j + 1] +
                            minv[3 * i + 2] * c_mt[3 * j + 2];
-    tp_mul(b, p_att, bp);
+    nc_matmul3(b, p_att, bp);
     for (int i = 0; i < 3; i++) {
         double s = bp[3 * i] * b[3 * i] + bp[3 * i + 1] * b[3 * i + 1] +
                    bp[3 * i + 2] * b[3 * i + 2];
