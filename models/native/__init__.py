@@ -38,7 +38,6 @@ from pathlib import Path
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-SOURCE = HERE / "kernels.c"
 #: Every C source of the library (``kernels.c``: the truth models; ``strapdown.c``: the
 #: alignment filters' mechanisation; the other files: further filter kernels) ...
 SOURCES = tuple(sorted(HERE.glob("*.c")))
