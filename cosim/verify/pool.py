@@ -429,7 +429,11 @@ class WorkerPool:
                     p.ready, start_failures = True, 0
                     self.ready_times.append(time.perf_counter() - p.born)
                 elif msg is not None and msg[0] == "done":
+                    # the next job first, then the saving: the worker runs while this
+                    # process writes the record (it waited for it before)
                     p.job = None
+                    if queue:
+                        p.give(queue.pop())
                     done(msg[1])
                 elif msg is not None and msg[0] == "error":
                     raise msg[1]
