@@ -321,3 +321,22 @@ def test_use_fmus_swaps_truth_models_only(tmp_path: Path) -> None:
     assert scenario.blocks["base"].source == str(fmu)
     assert scenario.blocks["align"].kind == "model"
     assert scenario.blocks["align"].source == "SinsStaticAlignment"
+
+
+def test_name_and_version_from_the_metadata_header_equal_the_full_parse(
+    site: Path,
+) -> None:
+    # every distribution of this environment (ins-cosim's METADATA carries the README as
+    # its long description, a blank line and "Name:"-like lines included), plus one whose
+    # metadata file is missing the version (the full parse is then what answers)
+    from importlib import metadata
+
+    dists = list(metadata.distributions())
+    assert len(dists) > 10
+    for dist in dists:
+        assert registry._name_version(dist) == (dist.metadata["Name"], dist.version)
+    info = site / "odd-1.0.dist-info"
+    info.mkdir()
+    (info / "METADATA").write_text("Metadata-Version: 2.1\nName: odd\n\nVersion: 9.9\n")
+    odd = metadata.PathDistribution(info)
+    assert registry._name_version(odd) == (odd.metadata["Name"], odd.version)
