@@ -123,19 +123,30 @@ def _scan() -> dict[str, list[Registration]]:
         if dist is None:
             label, location = "an unknown distribution", ""
         else:
-            name, version = _name_version(dist)
+            name, version = name_and_version(dist)
             label = f"distribution '{name} {version}'"
             location = str(Path(dist.locate_file("")).resolve())
         found.setdefault(ep.name, []).append(Registration(ep.name, ep.value, label, location))
     return dict(sorted(found.items()))
 
 
-def _name_version(dist: metadata.Distribution) -> tuple[str, str]:
-    """A distribution's ``Name`` and ``Version`` from the header of its metadata file.
+def name_and_version(dist: metadata.Distribution) -> tuple[str, str]:
+    """A distribution's ``Name`` and ``Version``, read from the header of its metadata file.
 
     ``dist.metadata`` parses the whole file as an e-mail message, long description
     included (ins-cosim's is its README: about 2 ms per parse, twice per entry point, in
     every worker process); the two fields are in the header, before the first blank line.
+
+    Parameters
+    ----------
+    dist : importlib.metadata.Distribution
+        An installed distribution.
+
+    Returns
+    -------
+    tuple of str
+        ``(name, version)``, as ``dist.metadata["Name"]`` and ``dist.version`` give them
+        (which answer when the header lacks either field).
     """
     text = dist.read_text("METADATA") or dist.read_text("PKG-INFO") or ""
     fields: dict[str, str] = {}

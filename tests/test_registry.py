@@ -334,9 +334,9 @@ def test_name_and_version_from_the_metadata_header_equal_the_full_parse(
     dists = list(metadata.distributions())
     assert len(dists) > 10
     for dist in dists:
-        assert registry._name_version(dist) == (dist.metadata["Name"], dist.version)
+        assert registry.name_and_version(dist) == (dist.metadata["Name"], dist.version)
     info = site / "odd-1.0.dist-info"
     info.mkdir()
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: odd\n\nVersion: 9.9\n")
     odd = metadata.PathDistribution(info)
-    assert registry._name_version(odd) == (odd.metadata["Name"], odd.version)
+    assert registry.name_and_version(odd) == (odd.metadata["Name"], odd.version)
