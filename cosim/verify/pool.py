@@ -34,6 +34,7 @@ from __future__ import annotations
 import contextlib
 import ctypes
 import functools
+import gc
 import multiprocessing
 import multiprocessing.connection
 import os
@@ -222,6 +223,10 @@ def _worker_main(spec: WorkerSpec, conn: Any, raw: Any, campaign: int) -> None:
         except Exception as exc:
             conn.send(("error", _picklable(exc)))
             return
+        # what the process holds now (the preloaded code, the blocks) stays for its life:
+        # out of the garbage collector's sight, whose full passes walked it in every run
+        # (2-4 ms of a 0.16 s transfer-alignment run; 0.7 ms after this)
+        gc.freeze()
         board.post(IDLE)
         conn.send(("ready",))
         while True:
