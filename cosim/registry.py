@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import Any
 
 import models
+from cosim import provenance
 from cosim.errors import ScenarioError, did_you_mean
 from models.block import Block
 
@@ -123,40 +124,11 @@ def _scan() -> dict[str, list[Registration]]:
         if dist is None:
             label, location = "an unknown distribution", ""
         else:
-            name, version = name_and_version(dist)
+            name, version = provenance.name_and_version(dist)
             label = f"distribution '{name} {version}'"
             location = str(Path(dist.locate_file("")).resolve())
         found.setdefault(ep.name, []).append(Registration(ep.name, ep.value, label, location))
     return dict(sorted(found.items()))
-
-
-def name_and_version(dist: metadata.Distribution) -> tuple[str, str]:
-    """A distribution's ``Name`` and ``Version``, read from the header of its metadata file.
-
-    ``dist.metadata`` parses the whole file as an e-mail message, long description
-    included (ins-cosim's is its README: about 2 ms per parse, twice per entry point, in
-    every worker process); the two fields are in the header, before the first blank line.
-
-    Parameters
-    ----------
-    dist : importlib.metadata.Distribution
-        An installed distribution.
-
-    Returns
-    -------
-    tuple of str
-        ``(name, version)``, as ``dist.metadata["Name"]`` and ``dist.version`` give them
-        (which answer when the header lacks either field).
-    """
-    text = dist.read_text("METADATA") or dist.read_text("PKG-INFO") or ""
-    fields: dict[str, str] = {}
-    for line in text.split("\n\n", 1)[0].splitlines():
-        key, sep, value = line.partition(":")
-        if sep and key in ("Name", "Version") and key not in fields:
-            fields[key] = value.strip()
-    if len(fields) < 2:  # no metadata file or an unusual one: the full parse
-        return dist.metadata["Name"], dist.version
-    return fields["Name"], fields["Version"]
 
 
 def names() -> list[str]:

@@ -21,7 +21,7 @@ import pytest
 
 import cosim
 import models
-from cosim import registry
+from cosim import provenance, registry
 from cosim.errors import ScenarioError
 from cosim.scenario import load_scenario
 from models.block import Block
@@ -334,9 +334,15 @@ def test_name_and_version_from_the_metadata_header_equal_the_full_parse(
     dists = list(metadata.distributions())
     assert len(dists) > 10
     for dist in dists:
-        assert registry.name_and_version(dist) == (dist.metadata["Name"], dist.version)
+        assert provenance.name_and_version(dist) == (dist.metadata["Name"], dist.version)
     info = site / "odd-1.0.dist-info"
     info.mkdir()
     (info / "METADATA").write_text("Metadata-Version: 2.1\nName: odd\n\nVersion: 9.9\n")
     odd = metadata.PathDistribution(info)
-    assert registry.name_and_version(odd) == (odd.metadata["Name"], odd.version)
+    assert provenance.name_and_version(odd) == (odd.metadata["Name"], odd.version)
+    # the versions written into every result, read the same way
+    software = provenance.versions()
+    assert software["ins-cosim"] == metadata.version("ins-cosim")
+    for package, version in software.items():
+        if package not in ("python", "platform"):
+            assert version == metadata.version(package)

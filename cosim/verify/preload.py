@@ -7,8 +7,8 @@ then builds its blocks without reading their sources again (about 0.3 s of CPU p
 worker for the transfer-alignment scenario, 0.5 s once in the forkserver for all
 built-in blocks). A block that cannot be loaded is left to the worker, which reports it.
 It also looks up the software versions written into every result
-(:func:`cosim.provenance.versions`, cached per process: 12 ms of metadata parsing that
-each worker paid while building its blocks).
+(:func:`cosim.provenance.versions`, cached per process: about 3 ms of metadata look-ups
+that each worker would pay while building its blocks).
 """
 
 from __future__ import annotations
