@@ -9,24 +9,30 @@ from importlib import metadata
 _PACKAGES = ("ins-cosim", "numpy", "scipy", "control", "fmpy", "pythonfmu", "pint")
 
 
-def versions() -> dict[str, str]:
+def versions(extra: tuple[str, ...] = ()) -> dict[str, str]:
     """Versions of Python and of the packages a result depends on.
 
-    Looked up once per process (a look-up scans every ``sys.path`` entry, and the
-    metadata library keeps a cache entry per folder it scanned).
+    Looked up once per process for each ``extra`` (a look-up scans every ``sys.path``
+    entry, and the metadata library keeps a cache entry per folder it scanned).
+
+    Parameters
+    ----------
+    extra : tuple of str
+        More distributions to look up after the fixed ones (a campaign's report adds the
+        packages it uses).
 
     Returns
     -------
     dict
         ``{"python": "3.11.7", "numpy": "2.1.0", ...}``; missing packages are omitted.
     """
-    return dict(_versions())
+    return dict(_versions(tuple(extra)))
 
 
 @functools.cache
-def _versions() -> dict[str, str]:
+def _versions(extra: tuple[str, ...]) -> dict[str, str]:
     out = {"python": platform.python_version(), "platform": platform.platform()}
-    for name in _PACKAGES:
+    for name in (*_PACKAGES, *extra):
         try:
             out[name] = name_and_version(metadata.distribution(name))[1]
         except metadata.PackageNotFoundError:

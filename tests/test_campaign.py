@@ -41,6 +41,21 @@ def assert_same_runs(a, b) -> None:
             np.testing.assert_array_equal(ra.history[key], rb.history[key])
 
 
+def assert_judged_from_the_saved_runs(campaign) -> None:
+    """The records a campaign judged are the ones on disk, field by field (it no longer
+    reads them back)."""
+    on_disk = read_records(campaign.out_dir / "runs")
+    assert set(on_disk) >= {r.index for r in campaign.records}
+    for r in campaign.records:
+        saved = on_disk[r.index]
+        assert r.to_dict() == saved.to_dict()
+        assert (r.tag, r.columns, r.parameters) == (saved.tag, saved.columns, saved.parameters)
+        assert sorted(r.history) == sorted(saved.history)
+        for key, values in saved.history.items():
+            assert r.history[key].dtype == values.dtype
+            np.testing.assert_array_equal(r.history[key], values)
+
+
 @pytest.fixture(scope="module")
 def pool_campaign(tmp_path_factory: pytest.TempPathFactory):
     """The demo verification campaign (20 runs) on 2 worker processes."""
@@ -105,6 +120,8 @@ def test_latin_hypercube_refuses_bad_sizes(args: tuple[int, int, int]) -> None:
 def test_process_pool_equals_one_process_and_each_run_alone(pool_campaign, tmp_path) -> None:
     serial = run_campaign(DEMO, tmp_path, workers=1, progress=False)
     assert_same_runs(pool_campaign, serial)
+    assert_judged_from_the_saved_runs(pool_campaign)
+    assert_judged_from_the_saved_runs(serial)
     assert (tmp_path / "metrics.csv").read_text() == (
         pool_campaign.out_dir / "metrics.csv"
     ).read_text()
@@ -227,6 +244,7 @@ def test_a_failing_fmu_run_is_recorded_and_the_campaign_goes_on(
     assert "t = 1.5 s" in failed.error
     assert failed.history["time"][-1] == pytest.approx(1.5)  # partial history kept
     assert all(m is None for m in failed.metrics.values())
+    assert_judged_from_the_saved_runs(campaign)
     v1, v2, v3 = campaign.verdicts
     # default: undecided, saying which run failed and what the completed runs show
     assert v1.verdict == UNDECIDED and "run(s) 3" in v1.reason
@@ -261,6 +279,7 @@ def test_resume_runs_only_what_is_missing(tmp_path: Path) -> None:
     assert resumed.execution["runs_this_session"] == 2 and resumed.settings.runs == 6
     assert (tmp_path / "metrics.csv").read_text() == reference
     assert_same_runs(first, resumed)
+    assert_judged_from_the_saved_runs(resumed)
     assert not list((tmp_path / "runs").glob(".*.tmp"))
     # --runs may grow a campaign: runs 0..5 are kept, 6..7 are new
     grown = run_campaign(DEMO, tmp_path, runs=8, resume=True, workers=1, progress=False)

@@ -24,6 +24,7 @@ import models
 from cosim import provenance, registry
 from cosim.errors import ScenarioError
 from cosim.scenario import load_scenario
+from cosim.verify.campaign import software_versions
 from models.block import Block
 from models.constants import ARCMIN
 
@@ -346,3 +347,11 @@ def test_name_and_version_from_the_metadata_header_equal_the_full_parse(
     for package, version in software.items():
         if package not in ("python", "platform"):
             assert version == metadata.version(package)
+    # and a campaign's report: the same, plus the packages it uses (missing ones left out)
+    report = software_versions()
+    assert list(report)[: len(software)] == list(software)
+    assert {"click", "tqdm"} <= set(report)
+    for package, version in report.items():
+        if package not in ("python", "platform"):
+            assert version == metadata.version(package)
+    assert "no-such-dist" not in provenance.versions(("no-such-dist",))

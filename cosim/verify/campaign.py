@@ -20,7 +20,6 @@ On disk, under the report folder::
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import os
@@ -36,7 +35,13 @@ from cosim.errors import ScenarioError
 from cosim.scenario import Scenario, build_master, load_scenario
 from cosim.verify.lock import holding_report_folder
 from cosim.verify.pool import WorkerPool, keeps_workers
-from cosim.verify.records import RunRecord, read_records, save_record, write_metrics_table
+from cosim.verify.records import (
+    RunRecord,
+    as_saved,
+    read_records,
+    save_record,
+    write_metrics_table,
+)
 from cosim.verify.requirements import Requirement, Verdict
 from cosim.verify.seeds import SEED_RULE, Stratified, run_seeds, stratified_draws
 from cosim.verify.statistics import judge, overall_exit_code
@@ -564,8 +569,11 @@ def run_campaign(
     bar = _progress(len(wanted), len(finished), progress)
     count = [len(finished)]
 
+    saved: dict[int, RunRecord] = dict(finished)
+
     def done(record: RunRecord) -> None:
         save_record(record, runs_dir)
+        saved[record.index] = as_saved(record)  # judged from this: no reading back
         count[0] += 1
         bar.update(1)
         if record.failed:
@@ -578,11 +586,10 @@ def run_campaign(
     finally:
         bar.close()
 
-    records_by_index = read_records(runs_dir, settings.runs)
-    missing = [i for i in wanted if i not in records_by_index]
-    if missing:  # only if files vanished under us
-        raise CampaignError(f"runs {missing[:5]} are missing from {runs_dir}")
-    records = [records_by_index[i] for i in wanted]
+    missing = [i for i in wanted if i not in saved]
+    if missing:  # a run handed back by no worker: a bug, not a user's mistake
+        raise CampaignError(f"runs {missing[:5]} were not run")
+    records = [saved[i] for i in wanted]
     verdicts = [judge(req, [r.metrics.get(req.id) for r in records]) for req in prep.requirements]
     meta = prep.metadata
     blocks_seeds = {b: meta["seeds"].get(b) for b in prep.seeded}
@@ -757,12 +764,6 @@ def software_versions() -> dict[str, str]:
     dict
         Package -> version (missing packages are left out).
     """
-    from importlib import metadata
-
     from cosim import provenance
 
-    out = provenance.versions()
-    for name in ("dask", "distributed", "matplotlib", "tqdm", "click"):
-        with contextlib.suppress(metadata.PackageNotFoundError):
-            out[name] = metadata.version(name)
-    return out
+    return provenance.versions(("dask", "distributed", "matplotlib", "tqdm", "click"))

@@ -239,6 +239,29 @@ def save_record(record: RunRecord, runs_dir: Path) -> None:
     os.replace(tmp, runs_dir / f"{stem}.json")
 
 
+def as_saved(record: RunRecord) -> RunRecord:
+    """The record as :func:`read_records` gives it back after :func:`save_record`.
+
+    What is written survives (the JSON fields, the histories as arrays); what is not
+    written is dropped (the tag, kept columns and parameters). A campaign judges the runs
+    it has just saved from this copy instead of reading every file back.
+
+    Parameters
+    ----------
+    record : RunRecord
+        A run that was saved.
+
+    Returns
+    -------
+    RunRecord
+        A new record; the histories are arrays of the same dtype and values.
+    """
+    return RunRecord.from_dict(
+        json.loads(json.dumps(record.to_dict())),
+        {k: np.asarray(v) for k, v in record.history.items()},
+    )
+
+
 def read_records(
     runs_dir: Path, runs: int | None = None, *, crashed: bool = True
 ) -> dict[int, RunRecord]:
