@@ -34,13 +34,16 @@ Loading checks everything that can be checked without running: every problem is 
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
+import gc
 import hashlib
 import importlib
 import math
 import re
 import sys
 import tomllib
+from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -244,8 +247,9 @@ class Scenario:
         """
         hosts: dict[str, BlockHost] = {}
         try:
-            for spec in self.blocks.values():
-                hosts[spec.name] = self._host(spec)
+            with collector_paused():
+                for spec in self.blocks.values():
+                    hosts[spec.name] = self._host(spec)
             parameters = {
                 name: self._parameters(spec, hosts[name]) for name, spec in self.blocks.items()
             }
@@ -712,6 +716,37 @@ def load_scenario(path: str | Path) -> Scenario:
         outputs=outputs,
         raw=doc,
     )
+
+
+@contextlib.contextmanager
+def collector_paused() -> Iterator[None]:
+    """Build long-lived objects without Python's cyclic garbage collector walking them.
+
+    Building a block makes many small objects that all live as long as the block does
+    (its variables, their accessors, its buffers: about 120 per block). The collector's
+    passes walk every object made so far, and the full ones come more often as the count
+    grows: on a check of 10^4 blocks they took about a third of the time, and the time
+    per block grew to 2.2-2.4 times that of 100 blocks. So the collector is paused for
+    the ``with`` body, and what the body made then goes straight to the oldest
+    generation (``gc.freeze`` then ``gc.unfreeze``: two list moves, no walk), where it
+    would have ended up after two more walks. That move is made only when nothing else
+    in the process is frozen (it would thaw that too). Reference counting still frees
+    whatever dies at once; a collector that the caller had turned off stays off.
+
+    Yields
+    ------
+    None
+    """
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if gc.get_freeze_count() == 0:
+            gc.freeze()
+            gc.unfreeze()
+        if enabled:
+            gc.enable()
 
 
 def build_master(
