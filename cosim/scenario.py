@@ -718,6 +718,11 @@ def load_scenario(path: str | Path) -> Scenario:
     )
 
 
+#: Objects tracked by the garbage collector made in one :func:`collector_paused` body at
+#: and above which they go straight to its oldest generation (about 400 blocks).
+PROMOTE_AFTER = 50_000
+
+
 @contextlib.contextmanager
 def collector_paused() -> Iterator[None]:
     """Build long-lived objects without Python's cyclic garbage collector walking them.
@@ -729,9 +734,12 @@ def collector_paused() -> Iterator[None]:
     per block grew to 2.2-2.4 times that of 100 blocks. So the collector is paused for
     the ``with`` body, and what the body made then goes straight to the oldest
     generation (``gc.freeze`` then ``gc.unfreeze``: two list moves, no walk), where it
-    would have ended up after two more walks. That move is made only when nothing else
-    in the process is frozen (it would thaw that too). Reference counting still frees
-    whatever dies at once; a collector that the caller had turned off stays off.
+    would have ended up after two more walks. That move is made only for a large build
+    (:data:`PROMOTE_AFTER` objects or more: a system of a few hundred blocks; a run's
+    dozen blocks are left to the collector, so that the garbage of earlier runs in a loop
+    is not moved with them) and only when nothing else in the process is frozen (it would
+    thaw that too). Reference counting still frees whatever dies at once; a collector
+    that the caller had turned off stays off.
 
     Yields
     ------
@@ -742,7 +750,7 @@ def collector_paused() -> Iterator[None]:
     try:
         yield
     finally:
-        if gc.get_freeze_count() == 0:
+        if gc.get_count()[0] >= PROMOTE_AFTER and gc.get_freeze_count() == 0:
             gc.freeze()
             gc.unfreeze()
         if enabled:
