@@ -35,13 +35,7 @@ from cosim.errors import ScenarioError
 from cosim.scenario import Scenario, build_master, load_scenario
 from cosim.verify.lock import holding_report_folder
 from cosim.verify.pool import WorkerPool, keeps_workers
-from cosim.verify.records import (
-    RunRecord,
-    as_saved,
-    read_records,
-    save_record,
-    write_metrics_table,
-)
+from cosim.verify.records import RunRecord, read_records, save_record, write_metrics_table
 from cosim.verify.requirements import Requirement, Verdict
 from cosim.verify.seeds import SEED_RULE, Stratified, run_seeds, stratified_draws
 from cosim.verify.statistics import judge, overall_exit_code
@@ -572,8 +566,7 @@ def run_campaign(
     saved: dict[int, RunRecord] = dict(finished)
 
     def done(record: RunRecord) -> None:
-        save_record(record, runs_dir)
-        saved[record.index] = as_saved(record)  # judged from this: no reading back
+        saved[record.index] = save_record(record, runs_dir)  # judged from this, not re-read
         count[0] += 1
         bar.update(1)
         if record.failed:

@@ -215,7 +215,7 @@ def write_atomic(path: Path, data: str | bytes) -> Path:
     return path
 
 
-def save_record(record: RunRecord, runs_dir: Path) -> None:
+def save_record(record: RunRecord, runs_dir: Path) -> RunRecord:
     """Write ``run_<i>.npz`` then ``run_<i>.json`` (the marker of a finished run).
 
     Both are written to a temporary name and renamed, so an interruption never leaves
@@ -227,39 +227,27 @@ def save_record(record: RunRecord, runs_dir: Path) -> None:
         The run.
     runs_dir : Path
         ``<report>/runs``.
-    """
-    runs_dir.mkdir(parents=True, exist_ok=True)
-    stem = run_stem(record.index)
-    tmp = runs_dir / f".{stem}.npz.tmp"
-    with open(tmp, "wb") as fh:
-        np.savez(fh, **record.history)
-    os.replace(tmp, runs_dir / f"{stem}.npz")
-    tmp = runs_dir / f".{stem}.json.tmp"
-    tmp.write_text(json.dumps(record.to_dict(), indent=1) + "\n")
-    os.replace(tmp, runs_dir / f"{stem}.json")
-
-
-def as_saved(record: RunRecord) -> RunRecord:
-    """The record as :func:`read_records` gives it back after :func:`save_record`.
-
-    What is written survives (the JSON fields, the histories as arrays); what is not
-    written is dropped (the tag, kept columns and parameters). A campaign judges the runs
-    it has just saved from this copy instead of reading every file back.
-
-    Parameters
-    ----------
-    record : RunRecord
-        A run that was saved.
 
     Returns
     -------
     RunRecord
-        A new record; the histories are arrays of the same dtype and values.
+        The run as :func:`read_records` gives it back, made from the JSON text just
+        written and the histories as arrays (same dtype and values): what is not written
+        is dropped (the tag, kept columns and parameters). A campaign judges the runs it
+        has just saved from these instead of reading every file back.
     """
-    return RunRecord.from_dict(
-        json.loads(json.dumps(record.to_dict())),
-        {k: np.asarray(v) for k, v in record.history.items()},
-    )
+    runs_dir.mkdir(parents=True, exist_ok=True)
+    stem = run_stem(record.index)
+    history = {k: np.asarray(v) for k, v in record.history.items()}
+    tmp = runs_dir / f".{stem}.npz.tmp"
+    with open(tmp, "wb") as fh:
+        np.savez(fh, **history)
+    os.replace(tmp, runs_dir / f"{stem}.npz")
+    text = json.dumps(record.to_dict(), indent=1)
+    tmp = runs_dir / f".{stem}.json.tmp"
+    tmp.write_text(text + "\n")
+    os.replace(tmp, runs_dir / f"{stem}.json")
+    return RunRecord.from_dict(json.loads(text), history)
 
 
 def read_records(
