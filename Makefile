@@ -24,7 +24,7 @@ setup: $(STAMP) native
 # The models' compiled step kernels (models/native/build/kernels-<hash>.so, gcc); a no-op
 # when the library of the current source exists. Without gcc the models run numpy.
 native: $(STAMP)
-	$(PY) -m models.native
+	$(PY) -m cosim.models.native
 
 $(FMUDIR)/.built: $(STAMP) $(MODEL_SOURCES) | native
 	$(VENV)/bin/ins-cosim fmus --build --dir $(FMUDIR)

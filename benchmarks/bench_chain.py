@@ -29,8 +29,8 @@ import numpy as np
 import cosim
 from benchmarks.monolithic import CHAIN_BLOCKS, CHAIN_SCENARIO, chain_parameters, simulate
 from benchmarks.timing import ROOT, fmu_dir, interleaved_best, load_note
+from cosim.models import native
 from cosim.scenario import build_master
-from models import native
 
 REPEATS = 2
 PROFILE_STOP = 20.0

@@ -18,8 +18,8 @@ import numpy as np
 
 from cosim.alignment.hrg_filters import PositionFilter
 from cosim.alignment.hrg_model import apparent_azimuth, dv_coefficients, predict_dv
-from models.constants import ARCMIN, DEG_PER_HOUR
-from models.conventions import rot_z
+from cosim.models.constants import ARCMIN, DEG_PER_HOUR
+from cosim.models.conventions import rot_z
 
 LAT = math.radians(45.0)
 G = 9.7966

@@ -40,12 +40,12 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from models.conventions import cross, dcm_to_euler, euler_to_dcm, wrap_angle
-from models.deck_flexure import discretize_flexure, noise_factor
-from models.earth import euler_motion_truth, omega_ie_n
-from models.lever_arm import r0_matrix, slave_kinematics
-from models.step_paths import simpson_nodes, substeps
-from models.strapdown_imu import bias_step_coefficients, resolve_parameters
+from cosim.models.conventions import cross, dcm_to_euler, euler_to_dcm, wrap_angle
+from cosim.models.deck_flexure import discretize_flexure, noise_factor
+from cosim.models.earth import euler_motion_truth, omega_ie_n
+from cosim.models.lever_arm import r0_matrix, slave_kinematics
+from cosim.models.step_paths import simpson_nodes, substeps
+from cosim.models.strapdown_imu import bias_step_coefficients, resolve_parameters
 
 HERE = Path(__file__).resolve().parent
 #: The chain's scenario file.

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-import models  # noqa: F401  (imported before any FMU, so FMUs of ours reuse this copy)
+from cosim import models  # noqa: F401  (imported before any FMU, so FMUs of ours reuse this copy)
 from cosim.errors import FmuError
 from cosim.units import name_disagreement
 from cosim.unpacked import drop_repeated_path_entries, unpacked_folders

@@ -249,13 +249,14 @@ def check(scenario: Path, fmu_dir: Path | None) -> None:
     show_default=True,
     help="Folder of FMUs.",
 )
-@click.option("--build", is_flag=True, help="First build every model in models/ into --dir.")
+@click.option("--build", is_flag=True, help="First build every built-in model into --dir.")
 def fmus(fmu_dir: Path, build: bool) -> None:
     """List and validate (fmpy validate) the FMUs in --dir."""
     from fmpy import read_model_description
     from fmpy.validation import validate_fmu
 
     from cosim.blocks import file_sha256
+    from cosim.interop.packaging import REQUIREMENTS
 
     if build:
         from cosim.interop.packaging import build_all
@@ -264,7 +265,11 @@ def fmus(fmu_dir: Path, build: bool) -> None:
             click.echo(f"built {path}")
     files = sorted(Path(fmu_dir).glob("*.fmu"))
     if not files:
-        click.echo(f"error: no FMUs in {fmu_dir}; run `make fmus` first", err=True)
+        click.echo(
+            f"error: no FMUs in {fmu_dir}; build ours with `ins-cosim fmus --build --dir "
+            f"{fmu_dir}` (in a checkout, `make fmus` does the same into fmus/build)",
+            err=True,
+        )
         sys.exit(3)
     bad = 0
     python_fmus = []
@@ -287,8 +292,8 @@ def fmus(fmu_dir: Path, build: bool) -> None:
     if python_fmus:
         click.echo(
             f"host requirements of {len(python_fmus)} FMU(s) made with PythonFMU (ours): the "
-            f"Python interpreter that loads them needs numpy, scipy and pythonfmu "
-            f"(pip install numpy scipy pythonfmu)"
+            f"Python interpreter that loads them needs {' and '.join(REQUIREMENTS)} "
+            f"(pip install {' '.join(REQUIREMENTS)}); pythonfmu's runtime is inside each FMU"
         )
     sys.exit(1 if bad else 0)
 

@@ -6,6 +6,8 @@ import functools
 import platform
 from importlib import metadata
 
+from cosim.models import native
+
 _PACKAGES = ("ins-cosim", "numpy", "scipy", "control", "fmpy", "pythonfmu", "pint")
 
 
@@ -24,9 +26,15 @@ def versions(extra: tuple[str, ...] = ()) -> dict[str, str]:
     Returns
     -------
     dict
-        ``{"python": "3.11.7", "numpy": "2.1.0", ...}``; missing packages are omitted.
+        ``{"python": "3.11.7", "platform": ..., "kernels": "compiled kernels
+        (kernels-<hash>.so)", "numpy": "2.1.0", ...}``; missing packages are omitted.
+        ``kernels`` is the path the
+        models' steps take in this process and why (:func:`cosim.models.native.status`:
+        compiled, or numpy with the reason).
     """
-    return dict(_versions(tuple(extra)))
+    found = _versions(tuple(extra))
+    head = {"python": found["python"], "platform": found["platform"], "kernels": native.status()}
+    return {**head, **found}
 
 
 @functools.cache

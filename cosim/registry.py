@@ -31,10 +31,9 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
-import models
-from cosim import provenance
+from cosim import models, provenance
 from cosim.errors import ScenarioError, did_you_mean
-from models.block import Block
+from cosim.models.block import Block
 
 #: Entry-point group of block classes (name in a scenario -> ``"module:Class"``).
 GROUP = "ins_cosim.blocks"
@@ -217,6 +216,6 @@ def _load(reg: Registration) -> type[Block]:
     if not (isinstance(cls, type) and issubclass(cls, Block)):
         raise ScenarioError(
             f"model '{reg.name}': entry point {reg} gives {cls!r}, not a subclass of "
-            f"models.block.Block"
+            f"cosim.models.block.Block"
         )
     return cls

@@ -52,6 +52,7 @@ from cosim import limits, provenance, registry
 from cosim.blocks import BlockHost, FmuHost, InProcessHost
 from cosim.errors import FmuError, ScenarioError, UnitError, did_you_mean, shorten
 from cosim.master import GAUSS_SEIDEL, Master, MasterSettings, System
+from cosim.models.block import Block
 from cosim.units import to_unit
 from cosim.variables import REAL, Variable
 from cosim.wiring import (
@@ -62,7 +63,6 @@ from cosim.wiring import (
     recorded_outputs,
     resolve_connections,
 )
-from models.block import Block
 
 TOP_KEYS = {"scenario", "master", "blocks", "connections", "output", "requirements", "campaign"}
 BLOCK_KEYS = {
@@ -333,7 +333,7 @@ class Scenario:
             what = type(obj).__name__ if not isinstance(obj, type) else f"class {obj.__name__}"
             raise self.error(
                 f"'{source}' is a {what}, not a block; class = 'module:Class' must name a "
-                f"subclass of models.block.Block",
+                f"subclass of cosim.models.block.Block",
                 key=key,
             )
         return obj

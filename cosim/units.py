@@ -44,7 +44,7 @@ import numpy as np
 import pint
 
 from cosim.errors import UnitError, shorten
-from models.constants import G0, PPM
+from cosim.models.constants import G0, PPM
 
 _REG = pint.UnitRegistry()
 _REG.define(f"nav_g = {G0!r} * meter / second ** 2")

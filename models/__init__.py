@@ -10,7 +10,7 @@ import importlib
 import inspect
 import pkgutil
 
-from models.block import Block
+from .block import Block
 
 _NOT_BLOCKS = {"block", "constants", "conventions", "earth", "frames", "step_paths"}
 

@@ -50,9 +50,9 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
-from models import native
-from models.block import Block, output, parameter, same_step
-from models.constants import ARCMIN
+from . import native
+from .block import Block, output, parameter, same_step
+from .constants import ARCMIN
 
 
 def discretize_flexure(beta: float, q: float, h: float) -> tuple[np.ndarray, np.ndarray]:

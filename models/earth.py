@@ -29,9 +29,9 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike
 
-from models.block import Var, input_, output
-from models.constants import E2, GAMMA_E, K_SOMIGLIANA, M_RATIO, OMEGA_IE, A, F
-from models.conventions import (
+from .block import Var, input_, output
+from .constants import E2, GAMMA_E, K_SOMIGLIANA, M_RATIO, OMEGA_IE, A, F
+from .conventions import (
     cross,
     euler_accel_to_body_accel,
     euler_rate_to_body_rate,

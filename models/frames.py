@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import ArrayLike
 
-from models.conventions import vec3
+from .conventions import vec3
 
 #: ENU <-> NED (and RFU <-> FRD) axis permutation; symmetric and its own inverse.
 T_NED_ENU = np.array([[0.0, 1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, -1.0]])

@@ -79,10 +79,10 @@ import math
 
 import numpy as np
 
-from models.block import Block, input_, output, parameter, same_step
-from models.constants import ARCMIN, DEG, OMEGA_IE
-from models.conventions import rot_z, rotvec_to_dcm
-from models.step_paths import substeps
+from .block import Block, input_, output, parameter, same_step
+from .constants import ARCMIN, DEG, OMEGA_IE
+from .conventions import rot_z, rotvec_to_dcm
+from .step_paths import substeps
 
 _V3 = (0.0, 0.0, 0.0)
 

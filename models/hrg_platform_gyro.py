@@ -39,7 +39,7 @@ import math
 
 import numpy as np
 
-from models.block import Block, input_, output, parameter
+from .block import Block, input_, output, parameter
 
 _V3 = (0.0, 0.0, 0.0)
 

@@ -68,18 +68,18 @@ import math
 
 import numpy as np
 
-from models import native
-from models.block import Block, input_, output, parameter
-from models.constants import DEG, OMEGA_IE
-from models.conventions import (
+from . import native
+from .block import Block, input_, output, parameter
+from .constants import DEG, OMEGA_IE
+from .conventions import (
     cross,
     dcm_to_euler_3,
     euler_to_dcm,
     euler_to_dcm_3,
     rotvec_to_dcm_and_jacobian,
 )
-from models.earth import motion_inputs
-from models.step_paths import (
+from .earth import motion_inputs
+from .step_paths import (
     StepPath,
     hermite_basis,
     path_basis,
@@ -313,8 +313,18 @@ class LeverArm(Block):
         input_("theta", (0.0, 0.0, 0.0), "rad", "flexure angle"),
         input_("theta_dot", (0.0, 0.0, 0.0), "rad/s", "flexure rate"),
         input_("theta_ddot", (0.0, 0.0, 0.0), "rad/s2", "flexure acceleration (step-mean noise)"),
-        input_("dtheta_flex", (0.0, 0.0, 0.0), "rad", "flexure angle change over the step"),
-        input_("dtheta_dot_flex", (0.0, 0.0, 0.0), "rad/s", "flexure rate change over the step"),
+        input_(
+            "dtheta_flex",
+            (0.0, 0.0, 0.0),
+            "rad",
+            "flexure angle change over THIS communication step [t, t+h] (depends on h)",
+        ),
+        input_(
+            "dtheta_dot_flex",
+            (0.0, 0.0, 0.0),
+            "rad/s",
+            "flexure rate change over THIS communication step [t, t+h] (depends on h)",
+        ),
         output("omega_is_s", (0.0, 0.0, 0.0), "rad/s", "slave rate w.r.t. inertial, slave axes"),
         output("f_s", (0.0, 0.0, 0.0), "m/s2", "slave specific force, slave axes"),
         output("dtheta_s", (0.0, 0.0, 0.0), "rad", "integral of omega_is_s over the step"),

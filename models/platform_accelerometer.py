@@ -34,8 +34,8 @@ import math
 
 import numpy as np
 
-from models.block import Block, input_, output, parameter
-from models.hrg_platform_gyro import mounting_matrix
+from .block import Block, input_, output, parameter
+from .hrg_platform_gyro import mounting_matrix
 
 _V3 = (0.0, 0.0, 0.0)
 

@@ -69,9 +69,9 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from models import native
-from models.block import Block, input_, output, parameter, same_step
-from models.constants import ARCSEC, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MICRO_G, PPM
+from . import native
+from .block import Block, input_, output, parameter, same_step
+from .constants import ARCSEC, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MICRO_G, PPM
 
 UNSET = -1.0  #: start value of the statistical parameters: "take it from the grade"
 
@@ -355,15 +355,30 @@ class StrapdownImu(Block):
 
     variables = (
         parameter(
-            "grade", 0, description="preset: 0 custom (zero errors), 1 navigation, 2 tactical"
+            "grade",
+            0,
+            description="preset: 0 custom, a PERFECT IMU (every error zero) unless its error "
+            "parameters are set (the default), 1 navigation, 2 tactical",
         ),
         parameter("seed", 0, description="random seed"),
         parameter("rlg_mode", 0, description="ring laser gyro: 0 none, 1 dithered, 2 rate-biased"),
         parameter("rlg_rw_reduction", 10.0, "1", "rate-biased RLG: random walk divided by this"),
         *_triad_parameters("gyro", "gyro", "rad/s", "rad", "gyro_arw", "rad/sqrt(s)"),
         *_triad_parameters("accel", "accelerometer", "m/s2", "m/s", "accel_vrw", "m/s/sqrt(s)"),
-        input_("dtheta_b", (0.0, 0.0, 0.0), "rad", "true angle increment over the step, body"),
-        input_("dv_b", (0.0, 0.0, 0.0), "m/s", "true velocity increment (specific force), body"),
+        input_(
+            "dtheta_b",
+            (0.0, 0.0, 0.0),
+            "rad",
+            "true angle increment over THIS communication step [t, t+h], body (not a rate: "
+            "feed rate * h for the h of each doStep, e.g. fmpy's output_interval)",
+        ),
+        input_(
+            "dv_b",
+            (0.0, 0.0, 0.0),
+            "m/s",
+            "true velocity increment (specific force * h) over THIS communication step "
+            "[t, t+h], body (not a specific force: feed f * h for the h of each doStep)",
+        ),
         output("dtheta_meas_b", (0.0, 0.0, 0.0), "rad", "measured angle increment"),
         output("dv_meas_b", (0.0, 0.0, 0.0), "m/s", "measured velocity increment"),
         output("omega_meas_b", (0.0, 0.0, 0.0), "rad/s", "mean measured rate dtheta_meas_b / h"),

@@ -52,11 +52,11 @@ import math
 
 import numpy as np
 
-from models.block import Block, output, parameter
-from models.constants import DEG
-from models.conventions import cross, dcm_to_euler, euler_to_dcm, vec3
-from models.earth import motion_inputs
-from models.step_paths import StepPath, simpson_nodes, substeps
+from .block import Block, output, parameter
+from .constants import DEG
+from .conventions import cross, dcm_to_euler, euler_to_dcm, vec3
+from .earth import motion_inputs
+from .step_paths import StepPath, simpson_nodes, substeps
 
 
 class Turntable(Block):

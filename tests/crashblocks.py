@@ -28,7 +28,7 @@ import time
 import uuid
 from pathlib import Path
 
-from models.block import Block, output, parameter
+from cosim.models.block import Block, output, parameter
 
 
 def crasher_module(folder: Path, **settings: object) -> str:

@@ -17,10 +17,10 @@ from scipy import stats
 from cosim.alignment.static_model import static_budget, static_covariance
 from cosim.estimation import van_loan
 from cosim.estimation.covariance import covariance_analysis, covariance_budget
+from cosim.models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0, MICRO_G, OMEGA_IE
 from cosim.verify.budget import campaign_budgets, linear_model, scenario_values, signal_budget
 from cosim.verify.campaign import prepare, run_campaign
 from cosim.verify.regression import ols
-from models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0, MICRO_G, OMEGA_IE
 
 ROOT = Path(__file__).resolve().parent.parent
 STATIC = ROOT / "scenarios" / "sins_north_finding.toml"

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cosim.models.constants import ARCMIN, G0, MICRO_G
 from cosim.verify.budget import NO_MODEL
 from cosim.verify.campaign import run_campaign
 from cosim.verify.report import write_reports
-from models.constants import ARCMIN, G0, MICRO_G
 
 ROOT = Path(__file__).resolve().parent.parent
 STATIC = ROOT / "scenarios" / "sins_north_finding.toml"

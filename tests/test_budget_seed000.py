@@ -14,10 +14,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cosim.models.constants import ARCMIN, DEG_PER_HOUR
 from cosim.verify.budget import linear_model, scenario_values
 from cosim.verify.budget_hrg import HrgBudget
 from cosim.verify.campaign import prepare
-from models.constants import ARCMIN, DEG_PER_HOUR
 
 ROOT = Path(__file__).resolve().parent.parent
 SCENARIO = ROOT / "scenarios" / "hrg_two_position.toml"

@@ -29,6 +29,8 @@ from allantools import noise
 from click.testing import CliRunner
 
 from cosim.cli import main
+from cosim.models.constants import DEG, G0
+from cosim.models.strapdown_imu import PRESETS
 from cosim.sensors.characterize import (
     FLICKER,
     GM_PEAK,
@@ -37,8 +39,6 @@ from cosim.sensors.characterize import (
     closest_grade,
     kasdin_flicker,
 )
-from models.constants import DEG, G0
-from models.strapdown_imu import PRESETS
 
 FS = 100.0
 DT = 1.0 / FS

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from models import conventions as cv
+from cosim.models import conventions as cv
 
 RNG = np.random.default_rng(20240611)
 

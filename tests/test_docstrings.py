@@ -62,7 +62,7 @@ from collections.abc import Callable, Iterator
 import pytest
 
 import cosim
-import models
+from cosim import models
 
 PACKAGES = (cosim, models)
 
@@ -298,5 +298,7 @@ def test_checker_reports_undocumented_arguments() -> None:
 
 def test_checker_walks_every_module() -> None:
     modules = public_modules()
-    assert {"cosim", "cosim.master", "cosim.alignment.transfer", "models.block"} <= set(modules)
+    assert {"cosim", "cosim.master", "cosim.alignment.transfer", "cosim.models.block"} <= set(
+        modules
+    )
     assert not any(part.startswith("_") for m in modules for part in m.split("."))

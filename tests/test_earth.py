@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from models import constants, earth
-from models import conventions as cv
+from cosim.models import constants, earth
+from cosim.models import conventions as cv
 
 
 def test_gravity_equator_and_pole_wgs84() -> None:

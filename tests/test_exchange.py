@@ -16,13 +16,13 @@ import numpy as np
 import pytest
 from testblocks import Pass
 
-import models
+from cosim import models
 from cosim.blocks import FmuHost, InProcessHost
 from cosim.interop.packaging import build_fmu
 from cosim.master import JACOBI, Connection, Master, MasterSettings, System
+from cosim.models.block import Block, input_, output
+from cosim.models.strapdown_imu import StrapdownImu
 from cosim.variables import REAL
-from models.block import Block, input_, output
-from models.strapdown_imu import StrapdownImu
 
 H = 0.01
 
@@ -263,7 +263,7 @@ for n, x in enumerate(ins):
     rows.append(fmu.getReal([vr[k] for k in outs]))
 fmu.terminate()
 fmu.freeInstance()
-import models
+from cosim import models
 print(json.dumps({"rows": rows, "models": models.__file__}))
 """
 

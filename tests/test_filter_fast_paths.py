@@ -26,8 +26,8 @@ from cosim.alignment.transfer_model import (
 from cosim.estimation import MerweScaledSigmaPoints, UnscentedKalmanFilter
 from cosim.estimation.checks import EstimatorTypeError
 from cosim.estimation.linalg import float_array
-from models.constants import OMEGA_IE
-from models.conventions import (
+from cosim.models.constants import OMEGA_IE
+from cosim.models.conventions import (
     cross,
     dcm_to_euler,
     dcm_to_rotvec,
@@ -35,7 +35,7 @@ from models.conventions import (
     rotvec_to_dcm,
     rotvec_to_dcm_3,
 )
-from models.earth import R_M, R_N
+from cosim.models.earth import R_M, R_N
 
 
 # ----------------------------------------------------------------------------- references

@@ -1,11 +1,12 @@
 """Issue 16, item 6: our FMUs say what they need from the host.
 
 An FMU made by ``cosim.interop.packaging`` runs its model in the Python interpreter that
-loads it, which needs numpy, scipy and pythonfmu. A host without one of them used to get
-"Failed to instantiate model" and nothing else (pythonfmu 0.7 logs only with debug
-logging on). Now ``fmi2Instantiate`` sends one error-level message through the host's
-logger callback, with debug logging *off*, naming the package and the install command,
-and fails.
+loads it, which needs numpy and scipy (pythonfmu's runtime is packed inside the FMU:
+issue 27 found the old "needs pythonfmu" untrue, and a test below shows it). A host
+without one of them used to get "Failed to instantiate model" and nothing else
+(pythonfmu 0.7 logs only with debug logging on). Now ``fmi2Instantiate`` sends one
+error-level message through the host's logger callback, with debug logging *off*,
+naming the package and the install command, and fails.
 
 Tested for real, without a fresh virtual environment: the FMU is loaded by fmpy in a
 child Python whose import system refuses the package (a ``sys.meta_path`` finder raising
@@ -26,17 +27,29 @@ from pathlib import Path
 import pytest
 
 from cosim.interop.packaging import REQUIREMENTS, build_fmu
-from models.gauss_markov import GaussMarkov2
+from cosim.models.gauss_markov import GaussMarkov2
 
 CHILD = r"""
 import importlib.abc, json, sys
 
+import importlib.machinery
+
 blocked = sys.argv[2]
+# "pythonfmu:installed" refuses only the installed pythonfmu (site-packages): an FMU's own
+# copy in its resources stays importable, as on a host that never installed pythonfmu.
+blocked, _, scope = blocked.partition(":")
 
 
 class Refuse(importlib.abc.MetaPathFinder):
     def find_spec(self, name, path, target=None):
         if blocked and (name == blocked or name.startswith(blocked + ".")):
+            if scope == "installed" and name == blocked:
+                outside = [p for p in sys.path if "site-packages" not in p]
+                spec = importlib.machinery.PathFinder.find_spec(name, outside)
+                if spec is not None:
+                    return spec
+            elif scope == "installed":
+                return None
             raise ModuleNotFoundError(f"No module named '{name}'", name=name)
         return None
 
@@ -65,7 +78,15 @@ try:
     instantiated = True
 except Exception:
     instantiated = False
-print(json.dumps({"instantiated": instantiated, "messages": messages}))
+out = {"instantiated": instantiated, "messages": messages}
+if instantiated and scope:
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=0.01)
+    out["stepped"] = True
+    out["pythonfmu"] = sys.modules["pythonfmu"].__file__
+print(json.dumps(out))
 sys.stdout.flush()
 """
 
@@ -89,7 +110,7 @@ def load_without(fmu: Path, package: str, tmp_path: Path) -> dict:
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-@pytest.mark.parametrize("package", ["scipy", "pythonfmu"])
+@pytest.mark.parametrize("package", ["scipy"])
 def test_a_missing_package_is_an_error_level_message_from_instantiate(
     fmu: Path, package: str, tmp_path: Path
 ) -> None:
@@ -100,7 +121,7 @@ def test_a_missing_package_is_an_error_level_message_from_instantiate(
     assert status == 3 and category == "logStatusError"  # fmi2Error
     assert f"GaussMarkov2.fmu needs the Python package '{package}'" in message
     assert f"{sys.executable} -m pip install {package}" in message
-    assert "numpy, scipy, pythonfmu" in message
+    assert "(this FMU needs numpy, scipy)" in message
 
 
 def test_with_every_package_the_fmu_instantiates_and_says_nothing(
@@ -110,9 +131,21 @@ def test_with_every_package_the_fmu_instantiates_and_says_nothing(
     assert got == {"instantiated": True, "messages": []}
 
 
+def test_a_host_without_pythonfmu_runs_the_fmu_on_the_copy_inside_it(
+    fmu: Path, tmp_path: Path
+) -> None:
+    """Issue 27: the message said pythonfmu was needed on the host; it is not."""
+    got = load_without(fmu, "pythonfmu:installed", tmp_path)
+    assert got["instantiated"] is True and got["messages"] == []
+    assert got["stepped"] is True
+    assert "resources" in Path(got["pythonfmu"]).parts  # the FMU's own pythonfmu
+    assert "pythonfmu" not in REQUIREMENTS
+
+
 def test_ins_cosim_fmus_states_the_host_requirements(cli, fmu: Path) -> None:
     res = cli("fmus", "--dir", fmu.parent)
     assert res.code == 0, res.err
     assert "GaussMarkov2.fmu" in res.out
-    assert "needs numpy, scipy and pythonfmu" in res.out
+    assert "needs numpy and scipy (pip install numpy scipy)" in res.out
+    assert "pythonfmu's runtime is inside each FMU" in res.out
     assert f"pip install {' '.join(REQUIREMENTS)}" in res.out

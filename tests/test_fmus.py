@@ -15,7 +15,7 @@ import pytest
 from fmpy import read_model_description, simulate_fmu
 from fmpy.validation import validate_fmu
 
-import models
+from cosim import models
 from cosim.blocks import FmuHost, InProcessHost
 from cosim.interop.references import MAX_STEPS, REFERENCE_DIR, drive, reference_run
 from cosim.results import RunResult

@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from models import conventions as cv
-from models import frames as fr
+from cosim.models import conventions as cv
+from cosim.models import frames as fr
 
 RNG = np.random.default_rng(20240611)
 

@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-import models
+from cosim import models
 from cosim.blocks import InProcessHost
 from cosim.errors import FmuError
 from cosim.interop.interfaces import InterfaceError, available_roles, load_role, match_role

@@ -105,6 +105,8 @@ def module_name(path: Path) -> str:
     parts = list(rel.with_suffix("").parts)
     if parts[-1] == "__init__":
         parts.pop()
+    if parts[0] == "models":  # installed as cosim.models (pyproject's package-dir)
+        parts.insert(0, "cosim")
     return ".".join(parts)
 
 
@@ -505,7 +507,7 @@ def test_constants_come_from_models_constants_only() -> None:
                     offenders.append(f"{rel}:{node.lineno}: {target.id} = ...")
         for imp in imports(path):  # a constant taken from a filter or a reproduction
             module, _, name = imp.target.rpartition(".")
-            if name.lstrip("_") in CONSTANTS and module != "models.constants":
+            if name.lstrip("_") in CONSTANTS and module != "cosim.models.constants":
                 if _is_project(module, {"testblocks"}):
                     offenders.append(f"{rel}:{imp.line}: {name} from {module}")
     assert not offenders, "constants defined or taken outside models.constants:\n" + "\n".join(

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import models
+from cosim import models
 from cosim.interop import modeldocs
-from models.block import Block, input_, output, parameter
+from cosim.models.block import Block, input_, output, parameter
 
 
 def test_every_model_page_is_up_to_date() -> None:

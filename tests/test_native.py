@@ -22,14 +22,14 @@ import numpy as np
 import pytest
 
 import cosim
-import models
 from benchmarks.monolithic import CHAIN_SCENARIO
+from cosim import models
 from cosim.blocks import InProcessHost
 from cosim.interop.packaging import build_fmu
 from cosim.interop.references import MAX_STEPS, REFERENCE_DIR, SEED, drive
+from cosim.models import native
 from cosim.results import RunResult
 from cosim.scenario import build_master
-from models import native
 
 COMPILED = ("LeverArm", "DeckFlexure", "StrapdownImu", "ShipMotion")
 BLOCKS = models.truth_models()
@@ -133,9 +133,9 @@ for n in range(n_steps):
         slave.setReal([v.valueReference for v in inputs], values)
     slave.doStep(currentCommunicationPoint=t, communicationStepSize=h)
     rows.append(slave.getReal(out_vrs))
-path = sys.modules["models.native"]
+path = sys.modules["cosim.models.native"]
 print(json.dumps({"names": [v.name for v in outputs], "rows": rows,
-                  "models": sys.modules["models"].__file__, "status": path.status()}))
+                  "models": sys.modules["cosim.models"].__file__, "status": path.status()}))
 slave.terminate()
 """
 
@@ -149,11 +149,11 @@ def fmus_without_kernels(tmp_path_factory: pytest.TempPathFactory) -> dict[str, 
         fmu = build_fmu(BLOCKS[name], out)
         with zipfile.ZipFile(fmu) as src:
             packed = [i.filename for i in src.infolist()]
-            assert any(p.startswith("resources/models/native/build/kernels-") for p in packed)
+            assert any(p.startswith("resources/cosim/models/native/build/kernels-") for p in packed)
             target = out / f"stripped_{name}.fmu"
             with zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as dst:
                 for item in src.infolist():
-                    if not item.filename.startswith("resources/models/native/build/"):
+                    if not item.filename.startswith("resources/cosim/models/native/build/"):
                         dst.writestr(item, src.read(item))
         stripped[name] = target
     return stripped

@@ -21,9 +21,9 @@ from transfer_run import align_block, needs_library, runs_both_ways, short_maste
 from cosim.alignment.nav import nav_rates
 from cosim.alignment.transfer import HISTORY, PERIOD_OUTPUTS, TransferAlignment
 from cosim.alignment.transfer_model import master_rate
-from models import native
-from models.constants import ARCMIN, E2, A
-from models.conventions import euler_to_dcm_3
+from cosim.models import native
+from cosim.models.constants import ARCMIN, E2, A
+from cosim.models.conventions import euler_to_dcm_3
 
 STOP = 15.0  # the acquisition ends at 5 s at the earliest: both stages run
 RTOL = 1e-12

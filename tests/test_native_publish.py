@@ -16,9 +16,9 @@ import pytest
 from transfer_run import align_block, needs_library, runs_both_ways, short_master
 
 from cosim.alignment.transfer import PUBLISH_INPUTS, PUBLISH_OUTPUTS, TransferAlignment
-from models import native
-from models.constants import ARCMIN
-from models.conventions import euler_to_dcm_3
+from cosim.models import native
+from cosim.models.constants import ARCMIN
+from cosim.models.conventions import euler_to_dcm_3
 
 STOP = 12.0  # the acquisition ends at 5 s at the earliest: both stages run
 RTOL = 1e-12

@@ -16,7 +16,7 @@ import pytest
 from cosim.alignment.nav import MOVING_BASE, STATIC_BASE, Mechanisation, Strapdown
 from cosim.alignment.nav_compiled import CompiledStrapdown, make_strapdown
 from cosim.alignment.transfer_model import PeriodSums
-from models.conventions import euler_to_dcm
+from cosim.models.conventions import euler_to_dcm
 
 RTOL = 1e-12
 OPTIONS = {

@@ -21,10 +21,10 @@ import pytest
 
 import cosim
 from cosim.errors import SimulationError
+from cosim.models.constants import DEG
 from cosim.scenario import BlockSpec
 from cosim.sensors.logs import ImuLog, write_csv
 from cosim.sensors.replay import ImuLogReplay, ReplayError
-from models.constants import DEG
 
 ROOT = Path(__file__).resolve().parent.parent
 SEED003 = ROOT / "scenarios" / "sins_north_finding.toml"

@@ -9,6 +9,7 @@ import pytest
 from scipy import stats
 
 from cosim.errors import ScenarioError
+from cosim.models.constants import ARCMIN
 from cosim.results import RunResult
 from cosim.verify.requirements import (
     SATISFIED,
@@ -30,7 +31,6 @@ from cosim.verify.statistics import (
     wilks_upper_bound,
     wilks_upper_rank,
 )
-from models.constants import ARCMIN
 
 UNITS = {
     "time": "s",

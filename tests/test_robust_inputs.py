@@ -254,7 +254,7 @@ def test_check_of_ten_thousand_blocks_answers_in_seconds(tmp_path: Path) -> None
 GC_PROBE = '''
 import gc
 
-from models.block import Block, output
+from cosim.models.block import Block, output
 
 SEEN = []
 
@@ -486,7 +486,7 @@ def test_a_negative_bound_is_refused(tmp_path: Path) -> None:
 
 
 BESIDE = '''
-from models.block import Block, input_, output
+from cosim.models.block import Block, input_, output
 
 
 class Doubler(Block):

@@ -10,7 +10,7 @@ import pytest
 
 import cosim
 from cosim.errors import ScenarioError
-from models.constants import ARCMIN, DEG
+from cosim.models.constants import ARCMIN, DEG
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cosim.models.constants import ARCMIN, OMEGA_IE
 from cosim.reproduce import seed000
 from cosim.reproduce.seed000 import (
     CONV_LIMIT,
@@ -33,7 +34,6 @@ from cosim.reproduce.seed000_noise import (
 from cosim.reproduce.seed000_report import sensitivity_markdown, sensitivity_plot
 from cosim.verify.campaign import CampaignError
 from cosim.verify.seeds import run_seeds
-from models.constants import ARCMIN, OMEGA_IE
 
 FIXED_SEED = 2024  # the campaign seed of the README's reproduction; run 0 is "the fixed seed"
 

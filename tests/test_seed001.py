@@ -15,6 +15,7 @@ import pytest
 
 from cosim.alignment.transfer_analysis import transfer_covariance
 from cosim.alignment.transfer_model import StateLayout
+from cosim.models.constants import ARCMIN
 from cosim.reproduce import update_readme
 from cosim.reproduce.seed001 import (
     HEADING_LIMIT,
@@ -31,7 +32,6 @@ from cosim.reproduce.seed001 import (
 from cosim.verify.campaign import CampaignError, campaign_jobs, prepare, run_campaign
 from cosim.verify.records import decimation
 from cosim.verify.seeds import latin_hypercube_normal
-from models.constants import ARCMIN
 
 ROOT = Path(__file__).resolve().parents[1]
 

@@ -25,10 +25,10 @@ import numpy as np
 import pytest
 
 from cosim.estimation import anees_bounds
+from cosim.models.constants import ARCMIN
 from cosim.reproduce import seed003
 from cosim.verify.campaign import CampaignError, prepare
 from cosim.verify.seeds import run_seeds
-from models.constants import ARCMIN
 
 SEED = 2024
 N_STATIC = 10

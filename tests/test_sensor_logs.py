@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from cosim.errors import UserError
+from cosim.models.constants import DEG, G0
 from cosim.sensors.formats import LogColumnError, LogTimeError, LogValueError
 from cosim.sensors.logs import ImuLog
-from models.constants import DEG, G0
 
 HEADER = "time [s],gyro_x [deg/s],gyro_y [deg/s],gyro_z [deg/s],acc_x [m/s2],acc_y [m/s2],acc_z [g]"
 

@@ -7,10 +7,10 @@ import math
 import numpy as np
 import pytest
 
-from models import constants, earth
-from models import conventions as cv
-from models.constants import ARCSEC, DEG
-from models.ship_motion import ShipMotion
+from cosim.models import constants, earth
+from cosim.models import conventions as cv
+from cosim.models.constants import ARCSEC, DEG
+from cosim.models.ship_motion import ShipMotion
 
 
 def make(**params: object) -> ShipMotion:

@@ -35,8 +35,8 @@ import cosim
 from cosim.interop.cbuild import build_c_fmu
 from cosim.interop.ssp import export_ssp
 from cosim.interop.ssp_import import SspImportError, load_ssp
+from cosim.models.constants import DEG, DEG_PER_HOUR, G0
 from cosim.scenario import build_master
-from models.constants import DEG, DEG_PER_HOUR, G0
 
 pytestmark = pytest.mark.filterwarnings("ignore::cosim.wiring.UnconnectedInputWarning")
 ROOT = Path(__file__).resolve().parents[1]

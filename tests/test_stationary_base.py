@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from test_ship_motion import ARCSEC, Strapdown
 
-from models import constants, earth
-from models import conventions as cv
-from models.constants import DEG
-from models.stationary_base import StationaryBase
+from cosim.models import constants, earth
+from cosim.models import conventions as cv
+from cosim.models.constants import DEG
+from cosim.models.stationary_base import StationaryBase
 
 
 def make(**params: object) -> StationaryBase:

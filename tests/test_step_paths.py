@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from models import step_paths as sp
+from cosim.models import step_paths as sp
 
 RNG = np.random.default_rng(20240611)
 

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from cosim.estimation.allan import allan_deviation, relative_error
-from models.constants import DEG_PER_HOUR, DEG_PER_SQRT_HOUR, G0, MICRO_G
-from models.strapdown_imu import (
+from cosim.models.constants import DEG_PER_HOUR, DEG_PER_SQRT_HOUR, G0, MICRO_G
+from cosim.models.strapdown_imu import (
     PRESETS,
     StrapdownImu,
     integrated_first_order,

@@ -31,9 +31,9 @@ from cosim.alignment.transfer_model import (
     reset_jacobian,
 )
 from cosim.estimation import van_loan
+from cosim.models.constants import ARCMIN, DEG, G0, OMEGA_IE
+from cosim.models.conventions import dcm_to_euler, dcm_to_rotvec, euler_to_dcm
 from cosim.scenario import build_master, load_scenario
-from models.constants import ARCMIN, DEG, G0, OMEGA_IE
-from models.conventions import dcm_to_euler, dcm_to_rotvec, euler_to_dcm
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "transfer_alignment.toml"
 LAT = 30.0 * DEG

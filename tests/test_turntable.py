@@ -9,11 +9,11 @@ import pytest
 from test_ship_motion import ARCSEC, Strapdown
 from test_ship_motion import make as make_ship
 
-from models import conventions as cv
-from models import earth
-from models.constants import DEG
-from models.stationary_base import StationaryBase
-from models.turntable import Turntable
+from cosim.models import conventions as cv
+from cosim.models import earth
+from cosim.models.constants import DEG
+from cosim.models.stationary_base import StationaryBase
+from cosim.models.turntable import Turntable
 
 BASE = ("omega_ib_b", "omega_dot_b", "f_b", "dtheta_b", "dv_b", "rpy")
 

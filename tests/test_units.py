@@ -6,8 +6,8 @@ from __future__ import annotations
 import pytest
 
 from cosim.errors import UnitError
+from cosim.models.constants import ARCMIN, ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, G0, PPM
 from cosim.units import conversion_factor, parse_unit, to_unit
-from models.constants import ARCMIN, ARCSEC, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, G0, PPM
 
 
 @pytest.mark.parametrize(

@@ -14,10 +14,10 @@ import pytest
 from fmpy import read_model_description
 
 from cosim.errors import ScenarioError, UnitError
+from cosim.models.constants import DEG
 from cosim.scenario import load_scenario
 from cosim.units import conversion_factor, parse_unit, to_unit, unit_from_fmi
 from cosim.variables import fmu_variables
-from models.constants import DEG
 
 DEG_S = unit_from_fmi("deg/s", {"rad": 1, "s": -1}, factor=DEG)
 DEGPS = unit_from_fmi("degps", {"rad": 1, "s": -1}, factor=DEG)

@@ -32,7 +32,7 @@ from cosim.estimation import (
     angle_residual_fn,
     unscented_transform,
 )
-from models.conventions import wrap_angle
+from cosim.models.conventions import wrap_angle
 
 
 @pytest.mark.parametrize("alpha, kappa", [(1.0, 0.0), (0.5, -1.0), (0.1, 0.0), (1e-3, 0.0)])

@@ -21,8 +21,8 @@ from fmpy.validation import validate_fmu
 import cosim
 from cosim.interop.cbuild import build_c_fmu
 from cosim.interop.fmu_check import check_fmu
+from cosim.models.constants import DEG, G0
 from cosim.scenario import build_master
-from models.constants import DEG, G0
 
 ROOT = Path(__file__).resolve().parents[1]
 VENDOR = ROOT / "fmus" / "vendor_example"

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from models.block import Block, input_, output, parameter
+from cosim.models.block import Block, input_, output, parameter
 
 
 class Ramp(Block):

@@ -16,8 +16,8 @@ import pytest
 import cosim
 from cosim.alignment.transfer import TransferAlignment
 from cosim.master import Master
+from cosim.models import native
 from cosim.scenario import build_master
-from models import native
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "transfer_alignment.toml"
 

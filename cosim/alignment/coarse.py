@@ -24,9 +24,9 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from cosim.alignment.nav import AlignmentError, earth_rate
-from models.constants import OMEGA_IE
-from models.conventions import cross
-from models.earth import gravity
+from cosim.models.constants import OMEGA_IE
+from cosim.models.conventions import cross
+from cosim.models.earth import gravity
 
 FloatArray = NDArray[np.float64]
 

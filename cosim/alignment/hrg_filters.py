@@ -58,8 +58,8 @@ from cosim.estimation import (
     angle_mean_fn,
     angle_residual_fn,
 )
-from models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0, OMEGA_IE
-from models.conventions import wrap_angle
+from cosim.models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0, OMEGA_IE
+from cosim.models.conventions import wrap_angle
 
 #: Filter of a position by ``method``.
 METHODS = {0: "EKF", 1: "UPF", 2: "KF"}

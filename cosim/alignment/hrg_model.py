@@ -132,8 +132,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from models.constants import OMEGA_IE
-from models.conventions import wrap_angle
+from cosim.models.constants import OMEGA_IE
+from cosim.models.conventions import wrap_angle
 
 #: Std of a uniform angle on the circle, ``pi / sqrt 3`` [rad] (the unknown-azimuth prior).
 UNIFORM_SIGMA = math.pi / math.sqrt(3.0)

@@ -12,9 +12,9 @@ import math
 
 from cosim.alignment.hrg_filters import TwoPositionAligner
 from cosim.alignment.hrg_model import PSI, UNIFORM_SIGMA
-from models.block import Block, input_, output, parameter
-from models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0
-from models.conventions import wrap_angle
+from cosim.models.block import Block, input_, output, parameter
+from cosim.models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0
+from cosim.models.conventions import wrap_angle
 
 
 class HrgTwoPositionAlignment(Block):

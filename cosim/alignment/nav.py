@@ -56,9 +56,9 @@ from typing import Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from models.constants import OMEGA_IE
-from models.conventions import cross, rotvec_to_dcm_3
-from models.earth import R_M, R_N, gravity
+from cosim.models.constants import OMEGA_IE
+from cosim.models.conventions import cross, rotvec_to_dcm_3
+from cosim.models.earth import R_M, R_N, gravity
 
 FloatArray = NDArray[np.float64]
 

@@ -25,8 +25,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from cosim.alignment.nav import MOVING_BASE, Mechanisation, Strapdown
-from models import native
-from models.constants import E2, GAMMA_E, K_SOMIGLIANA, M_RATIO, OMEGA_IE, A, F
+from cosim.models import native
+from cosim.models.constants import E2, GAMMA_E, K_SOMIGLIANA, M_RATIO, OMEGA_IE, A, F
 
 FloatArray = NDArray[np.float64]
 

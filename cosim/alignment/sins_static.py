@@ -78,9 +78,9 @@ from cosim.alignment.static_model import (
     table_dcm,
 )
 from cosim.estimation import KalmanFilter
-from models.block import Block, input_, output, parameter
-from models.constants import ARCMIN, DEG
-from models.conventions import dcm_to_euler_3, euler_to_dcm_3, rotvec_to_dcm_3, wrap_angle
+from cosim.models.block import Block, input_, output, parameter
+from cosim.models.constants import ARCMIN, DEG
+from cosim.models.conventions import dcm_to_euler_3, euler_to_dcm_3, rotvec_to_dcm_3, wrap_angle
 
 FloatArray = NDArray[np.float64]
 

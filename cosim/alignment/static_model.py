@@ -70,9 +70,9 @@ from cosim.estimation.covariance import (
     covariance_analysis,
     covariance_budget,
 )
-from models.constants import DEG, DEG_PER_HOUR, MICRO_G, OMEGA_IE
-from models.conventions import euler_to_dcm_3
-from models.earth import gravity
+from cosim.models.constants import DEG, DEG_PER_HOUR, MICRO_G, OMEGA_IE
+from cosim.models.conventions import euler_to_dcm_3
+from cosim.models.earth import gravity
 
 FloatArray = NDArray[np.float64]
 

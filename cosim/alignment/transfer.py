@@ -118,10 +118,10 @@ from cosim.alignment.transfer_model import (
     TransferTuning,
     master_rate,
 )
-from models import native
-from models.block import Block, input_, output, parameter
-from models.constants import ARCMIN, DEG, E2, A
-from models.conventions import dcm_to_euler_3, euler_to_dcm, euler_to_dcm_3, wrap_angle
+from cosim.models import native
+from cosim.models.block import Block, input_, output, parameter
+from cosim.models.constants import ARCMIN, DEG, E2, A
+from cosim.models.conventions import dcm_to_euler_3, euler_to_dcm, euler_to_dcm_3, wrap_angle
 
 FloatArray = NDArray[np.float64]
 

@@ -28,10 +28,10 @@ from cosim.estimation.covariance import (
     covariance_analysis,
     covariance_budget,
 )
-from models.constants import DEG, OMEGA_IE
-from models.conventions import cross, euler_to_dcm
-from models.earth import euler_motion_truth
-from models.lever_arm import r0_matrix
+from cosim.models.constants import DEG, OMEGA_IE
+from cosim.models.conventions import cross, euler_to_dcm
+from cosim.models.earth import euler_motion_truth
+from cosim.models.lever_arm import r0_matrix
 
 FloatArray = NDArray[np.float64]
 

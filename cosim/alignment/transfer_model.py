@@ -115,14 +115,14 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from cosim.alignment.nav import AlignmentConfigError, Strapdown, euler_rate_matrix, nav_rates
-from models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0, OMEGA_IE
-from models.conventions import (
+from cosim.models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0, OMEGA_IE
+from cosim.models.conventions import (
     dcm_to_euler,
     euler_to_dcm,
     rotvec_to_dcm,
     skew,
 )
-from models.earth import R_M, R_N
+from cosim.models.earth import R_M, R_N
 
 FloatArray = NDArray[np.float64]
 

@@ -19,8 +19,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from cosim.alignment.transfer_model import PeriodSums, StateLayout, propagate
-from models import native
-from models.constants import E2, OMEGA_IE, A
+from cosim.models import native
+from cosim.models.constants import E2, OMEGA_IE, A
 
 FloatArray = NDArray[np.float64]
 

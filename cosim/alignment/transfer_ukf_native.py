@@ -30,7 +30,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cosim.estimation import UnscentedKalmanFilter
-from models import native
+from cosim.models import native
 
 FloatArray = NDArray[np.float64]
 

@@ -22,7 +22,7 @@ from cosim.estimation.checks import (
     ShapeError,
     as_float,
 )
-from models.conventions import wrap_angle
+from cosim.models.conventions import wrap_angle
 
 __all__ = ["angle_mean", "angle_mean_fn", "angle_residual", "angle_residual_fn"]
 

@@ -53,11 +53,12 @@ from pathlib import Path
 from typing import Any
 
 from cosim.errors import UnitError, UserError
+from cosim.package_data import role_dir
 from cosim.units import conversion_factor
 from cosim.variables import Variable, apply_rename
 
 #: Folder of the role specs shipped with ins-cosim.
-ROLE_DIR = Path(__file__).resolve().parents[2] / "fmus" / "interfaces"
+ROLE_DIR = role_dir()
 
 _CAUSALITIES = ("input", "output", "parameter")
 _TYPES = ("Real", "Integer", "Boolean", "String")

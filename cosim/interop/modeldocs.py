@@ -23,8 +23,8 @@ import sys
 from collections.abc import Sequence
 from pathlib import Path
 
-import models
-from models.block import Block, Var
+from cosim import models
+from cosim.models.block import Block, Var
 
 DOCS_DIR = Path(models.__file__).resolve().parent / "docs"
 
@@ -126,6 +126,74 @@ def _inline(line: str) -> str:
     return line.replace("``", "`")
 
 
+#: Marks an input whose value is an increment over the communication step (its meaning
+#: depends on the step ``h``): the page and ``docs/fmpy_users.md`` then say how to feed it.
+STEP_DEPENDENT = "over THIS communication step"
+
+
+def fmpy_example(cls: type[Block]) -> str:
+    """The page's "With plain fmpy" section: host requirements and a runnable example.
+
+    The example simulates the FMU alone for 100 default steps with fmpy's
+    ``simulate_fmu`` (inputs at their start values) and prints the last value of its
+    first outputs; ``tests/test_install.py`` runs it in a virtual environment holding
+    only fmpy, numpy and scipy.
+
+    Parameters
+    ----------
+    cls : type
+        A :class:`models.block.Block` subclass.
+
+    Returns
+    -------
+    str
+        Markdown (no trailing newline).
+    """
+    outputs = []
+    for var in cls.variables:
+        if var.causality == "output" and len(outputs) < 3:
+            names = [f"{var.name}[{i + 1}]" for i in range(len(var.start))] if var.is_vector else []
+            outputs.extend(names[: 3 - len(outputs)] or [var.name])
+    step = f"{cls.default_step:.10g}"
+    stepwise = [
+        v.name for v in cls.variables if v.causality == "input" and STEP_DEPENDENT in v.description
+    ]
+    names = {var.name for var in cls.variables}
+    starts = ['"seed": 1'] if "seed" in names else []
+    starts += ['"grade": 2'] if "grade" in names else []  # tactical: grade 0 is a perfect IMU
+    quoted = ", ".join(f'"{o}"' for o in outputs)
+    lines = [
+        "The FMU needs, in the Python that loads it, numpy and scipy only (pythonfmu's "
+        "runtime is packed inside the FMU): `pip install fmpy numpy scipy`. Its "
+        "`documentation/index.html` is this page. Example (the file "
+        f"`{cls.__name__}.fmu` in the working folder; inputs stay at their start values):",
+        "",
+        "```python",
+        "from fmpy import simulate_fmu",
+        "",
+        "result = simulate_fmu(",
+        f'    "{cls.__name__}.fmu",',
+        f"    stop_time={100 * cls.default_step:.10g},",
+        f"    output_interval={step},  # the communication step h [s]",
+        *([f"    start_values={{{', '.join(starts)}}},"] if starts else []),
+        f"    output=[{quoted}],",
+        ")",
+        'print(result["time"][-1])',
+        *(f'print("{o}", result["{o}"][-1])' for o in outputs),
+        "```",
+    ]
+    if stepwise:
+        listed = ", ".join(f"`{n}`" for n in stepwise)
+        lines += [
+            "",
+            f"Inputs {listed} are increments over the communication step `[t, t + h]`, not "
+            "rates: a host that changes `h` (fmpy's `output_interval`) must feed the "
+            "increment over its own `h` (rate times `h`), or the outputs scale with the "
+            "ratio of the two steps. See docs/fmpy_users.md of ins-cosim.",
+        ]
+    return "\n".join(lines)
+
+
 def render(cls: type[Block], notes: str = "") -> str:
     """The page of one block class.
 
@@ -142,12 +210,13 @@ def render(cls: type[Block], notes: str = "") -> str:
         The whole Markdown page, ending with a newline.
     """
     module = sys.modules[cls.__module__]
-    path = f"{cls.__module__.replace('.', '/')}.py"
+    path = f"{cls.__module__.removeprefix('cosim.').replace('.', '/')}.py"
     summary = (inspect.getdoc(cls) or cls.__name__).split("\n")[0]
     parts = [
         f"# {cls.__name__}",
         "",
-        f"{summary} Module `{path}`; FMU `fmus/build/{cls.__name__}.fmu` (`make fmus`); "
+        f"{summary} Module `{path}`; FMU `fmus/build/{cls.__name__}.fmu` (`make fmus`, or "
+        "`ins-cosim fmus --build` from an installed wheel); "
         f"reference result `models/reference/{cls.__name__}.csv` (the block alone, default "
         "parameters, the drive of `cosim/interop/references.py`; `tests/test_fmus.py` "
         "compares the class and the FMU with it).",
@@ -162,6 +231,10 @@ def render(cls: type[Block], notes: str = "") -> str:
         "## Variables",
         "",
         variable_table(cls),
+        "",
+        "## With plain fmpy",
+        "",
+        fmpy_example(cls),
         "",
         NOTES_MARKER,
     ]

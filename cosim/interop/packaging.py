@@ -1,8 +1,14 @@
 """Pack the block classes of ``models/`` into FMI 2.0 co-simulation FMUs with pythonfmu.
 
-Each FMU holds a short entry script that imports its class, plus a copy of the
-``models`` package in its resources; numpy, scipy and pythonfmu (:data:`REQUIREMENTS`)
-come from the Python interpreter that loads the FMU. When one of them is missing there,
+Each FMU holds a short entry script that imports its class, plus in its resources a
+``cosim`` stub package holding a copy of ``cosim.models`` (the repository's ``models/``)
+without what the FMU does not run: no model pages, reference results or C sources, only
+the compiled kernels' library (:func:`models_copy`); pythonfmu packs its own Python runtime
+beside it. The FMU's model page is its FMI ``documentation/index.html``
+(:mod:`cosim.interop.fmudocs`). numpy and scipy (:data:`REQUIREMENTS`) come from the
+Python interpreter that loads the FMU; pythonfmu need not be installed there. In a host
+that has imported ins-cosim already, the FMU reuses that ``cosim.models``. When one of
+the requirements is missing there,
 the entry script stands in for the class: ``fmi2Instantiate`` sends one error-level
 message (``fmi2Error``, category ``logStatusError``) through the host's logger callback,
 naming the package and the install command, also with debug logging off, and fails.
@@ -17,24 +23,35 @@ instantiation, visible with debug logging.
 
 from __future__ import annotations
 
+import ast
+import shutil
+import sys
 import tempfile
 import warnings
 from pathlib import Path
 
-import models
-from models import native
-from models.block import Block
+from cosim import models
+from cosim.interop.fmudocs import write_documentation
+from cosim.models import native
+from cosim.models.block import Block
 
 MODELS_DIR = Path(models.__file__).resolve().parent
+#: The ``cosim/__init__.py`` an FMU carries: a marker, nothing imported.
+STUB_INIT = '''"""The part of ins-cosim an FMU carries (its models; no commands)."""
+
+_ins_cosim_fmu_stub = True
+'''
 
 # The FMU's entry module. pythonfmu imports it, then executes it once more per instance
 # with separate globals and locals (so: no comprehensions here, they would not see the
 # local names), and releases one reference to the module namespace that it never took
 # (pythonfmu 0.7 findClass): each execution keeps one reference to balance that, or the
 # namespace is freed under the module and the interpreter crashes later.
-# A `models` package imported earlier in the same process from another FMU's resources
+# A `cosim` stub package imported earlier in the same process from another FMU's resources
 # may point to a folder deleted when that FMU was unloaded: forget it, so that this FMU
-# imports its own copy.
+# imports its own copy; a live stub of another FMU gets this FMU's folder on its path
+# (a log replay FMU carries cosim.sensors, the others do not). A real ins-cosim imported
+# by the host is left alone: the FMU uses its cosim.models.
 # pythonfmu 0.7's binary also has a use-after-free at process exit: a C++ static
 # shared_ptr is destroyed by the exit handlers, then the library's ELF destructor
 # (finalizePythonInterpreter) decrements the freed control block again, which corrupts
@@ -70,16 +87,20 @@ if sys.platform.startswith("linux") and getattr(sys, "orig_argv", None) and sys.
             _pinned[_binary] = _library
             atexit.register(_release)
 
-_previous = sys.modules.get("models")
-if _previous is not None:
+_previous = sys.modules.get("cosim")
+if _previous is not None and getattr(_previous, "_ins_cosim_fmu_stub", False):
     _stale = False
     for _folder in _previous.__path__:
         if not os.path.isdir(_folder):
             _stale = True
     if _stale:
         for _key in list(sys.modules):
-            if _key == "models" or _key.startswith("models."):
+            if _key == "cosim" or _key.startswith("cosim."):
                 del sys.modules[_key]
+    elif sys.path:
+        _own = os.path.join(os.path.abspath(sys.path[0]), "cosim")
+        if os.path.isdir(_own) and _own not in _previous.__path__:
+            _previous.__path__.append(_own)
 
 try:
     from {module} import {name}  # noqa: E402,F401
@@ -141,8 +162,9 @@ except ImportError as _error:
             logger(functions[4], name, 3, b"logStatusError", text)
 """
 
-#: What every FMU built here needs in the Python interpreter that loads it.
-REQUIREMENTS = ("numpy", "scipy", "pythonfmu")
+#: What every FMU built here needs in the Python interpreter that loads it (pythonfmu's
+#: runtime travels inside the FMU: pythonfmu's builder packs it into the resources).
+REQUIREMENTS = ("numpy", "scipy")
 #: pythonfmu versions whose logger layout the entry script reads (see ENTRY_SCRIPT).
 LOGGER_LAYOUT_VERSIONS = ("0.7.",)
 
@@ -174,6 +196,93 @@ def entry_script(module: str, name: str) -> str:
     )
 
 
+def needed_modules(source: Path) -> set[str]:
+    """The modules of the models package that the code in ``source`` imports, transitively.
+
+    Read from the import statements (relative ones inside the package, ``cosim.models.x``
+    from outside it), functions' lazy imports included.
+
+    Parameters
+    ----------
+    source : Path
+        A Python file: a model's module, or a block's module outside the package.
+
+    Returns
+    -------
+    set of str
+        Names of the package's top-level modules and subpackages (``"block"``,
+        ``"native"``, ...), ``source``'s own module included when it is one of them.
+    """
+    top = {p.stem for p in MODELS_DIR.glob("*.py")} | {
+        p.parent.name for p in MODELS_DIR.glob("*/__init__.py")
+    }
+    found: set[str] = set()
+    todo = [source.resolve(), MODELS_DIR / "__init__.py"]
+    while todo:
+        path = todo.pop()
+        inside = path.parent == MODELS_DIR
+        if inside and path.stem in top:
+            found.add(path.stem)
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            module = node.module or ""
+            if node.level == 1 and inside:
+                names = [module.split(".")[0]] if module else [a.name for a in node.names]
+            elif node.level == 0 and module.startswith("cosim.models."):
+                names = [module.split(".")[2]]
+            elif node.level == 0 and module == "cosim.models":
+                names = [a.name for a in node.names]
+            else:
+                continue
+            for name in names:
+                if name in top and name not in found:
+                    found.add(name)
+                    file = MODELS_DIR / f"{name}.py"
+                    todo.append(file if file.is_file() else MODELS_DIR / name / "__init__.py")
+    return found
+
+
+def models_copy(dest: Path, source: Path | None = None) -> Path:
+    """Copy the models package as an FMU runs it into ``dest/cosim/models``.
+
+    Left out: the modules ``source`` does not need (:func:`needed_modules`), the model
+    pages (``docs/``; the FMU's own page is its documentation folder), the reference
+    results (``reference/``), the C sources and headers, caches, and every compiled
+    library but the current one (:func:`cosim.models.native.library_path`, copied when it
+    was built).
+
+    Parameters
+    ----------
+    dest : Path
+        The folder that becomes the FMU's resources.
+    source : Path, optional
+        The file of the block's module; None copies every module.
+
+    Returns
+    -------
+    Path
+        The ``cosim`` folder made (with :data:`STUB_INIT` as its ``__init__.py``).
+    """
+    library = native.library_path()
+    keep = None if source is None else needed_modules(source)
+
+    def ignore(folder: str, names: list[str]) -> set[str]:
+        skip = {n for n in names if n in ("docs", "reference", "__pycache__", "build")}
+        if keep is not None and Path(folder).resolve() == MODELS_DIR:
+            skip |= {n for n in names if n != "__init__.py" and n.removesuffix(".py") not in keep}
+        return skip | {n for n in names if n.endswith((".c", ".h", ".md", ".pyc", ".so"))}
+
+    package = dest / "cosim"
+    shutil.copytree(MODELS_DIR, package / "models", ignore=ignore, dirs_exist_ok=True)
+    if library.is_file() and (keep is None or "native" in keep):
+        build = package / "models" / "native" / "build"
+        build.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(library, build / library.name)
+    (package / "__init__.py").write_text(STUB_INIT)
+    return package
+
+
 def build_fmu(cls: type[Block], out_dir: Path, extra_files: tuple[Path, ...] = ()) -> Path:
     """Build ``out_dir/<ClassName>.fmu`` from a block class.
 
@@ -184,7 +293,8 @@ def build_fmu(cls: type[Block], out_dir: Path, extra_files: tuple[Path, ...] = (
     out_dir : Path
         Destination folder (created if missing).
     extra_files : tuple of Path
-        Further modules to ship in the resources (for classes defined outside ``models``).
+        Further files and folders to ship in the resources (for classes defined outside
+        ``models``); a folder named ``cosim`` is merged into the FMU's ``cosim`` package.
 
     Returns
     -------
@@ -193,20 +303,37 @@ def build_fmu(cls: type[Block], out_dir: Path, extra_files: tuple[Path, ...] = (
     """
     from pythonfmu.builder import FmuBuilder
 
-    try:  # the compiled kernels travel in the FMU's copy of models/ (models/native/build)
+    from cosim.interop.modeldocs import DOCS_DIR, notes_of, render
+
+    try:  # the compiled kernels travel in the FMU's copy of the models
         native.build()
     except RuntimeError as exc:
-        message = f"{cls.__name__}.fmu without compiled kernels (runs numpy): {exc}"
+        message = f"FMUs built without compiled kernels (they run numpy): {exc}"
         warnings.warn(message, stacklevel=2)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="ins_cosim_fmu_") as tmp:
         script = Path(tmp) / f"{cls.__name__}_fmu.py"
         script.write_text(entry_script(cls.__module__, cls.__name__))
+        resources = Path(tmp) / "resources"
+        package = models_copy(resources, Path(sys.modules[cls.__module__].__file__))
+        others = []
+        for extra in map(Path, extra_files):
+            if extra.is_dir() and extra.name == "cosim":
+                shutil.copytree(extra, package, dirs_exist_ok=True)
+                (package / "__init__.py").write_text(STUB_INIT)
+            else:
+                others.append(extra)
+        page = DOCS_DIR / f"{cls.__name__}.md"
+        if not page.is_file():  # a block outside models/: its page made from the class
+            page = Path(tmp) / f"{cls.__name__}.md"
+            page.write_text(render(cls, notes_of(page)), encoding="utf-8")
+        documentation = write_documentation(page, Path(tmp) / "documentation", cls.__name__)
         return FmuBuilder.build_FMU(
             script,
             dest=out_dir / f"{cls.__name__}.fmu",
-            project_files=[MODELS_DIR, *map(Path, extra_files)],
+            project_files=[package, *others],
+            documentation_folder=documentation.parent,
         )
 
 

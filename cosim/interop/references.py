@@ -17,11 +17,12 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim import models
 from cosim.blocks import BlockHost, InProcessHost
 from cosim.results import RunResult
 from cosim.variables import REAL
 
-REFERENCE_DIR = Path(__file__).resolve().parents[2] / "models" / "reference"
+REFERENCE_DIR = Path(models.__file__).resolve().parent / "reference"
 SEED = 1234
 MAX_STEPS = 200
 
@@ -87,7 +88,6 @@ def write_all(out_dir: Path = REFERENCE_DIR) -> list[Path]:
     list of Path
         The CSV files written.
     """
-    import models
 
     written = []
     for name, cls in models.truth_models().items():

@@ -54,15 +54,16 @@ from typing import Any
 import numpy as np
 
 from cosim.master import CouplingWarning
+from cosim.models.constants import ARCMIN, OMEGA_IE
+from cosim.models.constants import DEG_PER_HOUR as DEG_H
+from cosim.models.conventions import wrap_angle
+from cosim.package_data import scenario_file
 from cosim.units import conversion_factor
 from cosim.verify.campaign import CampaignError, Prepared, prepare, simulate
 from cosim.verify.seeds import run_seeds
 from cosim.verify.workers import Job
-from models.constants import ARCMIN, OMEGA_IE
-from models.constants import DEG_PER_HOUR as DEG_H
-from models.conventions import wrap_angle
 
-SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "hrg_two_position.toml"
+SCENARIO = scenario_file("hrg_two_position.toml")
 #: Convergence band of the apparent azimuth (acceptance: 4') [arcmin].
 CONV_BAND = 4.0
 #: Level convergence band [arcmin] (Table 1: level error < 1').

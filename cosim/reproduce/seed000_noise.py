@@ -12,6 +12,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from cosim.models.constants import ARCMIN, OMEGA_IE
 from cosim.reproduce.seed000 import (
     CONV_BAND,
     CONV_LIMIT,
@@ -22,7 +23,6 @@ from cosim.reproduce.seed000 import (
     prepared,
 )
 from cosim.verify.campaign import Prepared
-from models.constants import ARCMIN, OMEGA_IE
 
 
 # ----------------------------------------------------------------------------------------

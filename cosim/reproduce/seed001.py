@@ -55,11 +55,12 @@ import numpy as np
 
 from cosim.alignment.transfer_analysis import transfer_covariance
 from cosim.alignment.transfer_model import StateLayout
+from cosim.models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0
+from cosim.package_data import scenario_file
 from cosim.verify.campaign import CampaignError, campaign_jobs, prepare, simulate
 from cosim.verify.records import RunRecord
-from models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0
 
-SCENARIO = Path(__file__).resolve().parents[2] / "scenarios" / "transfer_alignment.toml"
+SCENARIO = scenario_file("transfer_alignment.toml")
 #: Blocks with a seed parameter, in file order (the campaign engine's order).
 SEEDED = ("flex", "imu", "master")
 #: Start of the accuracy window [s] (heading converges in ~30 s, seed 001 sec. 5).

@@ -36,16 +36,17 @@ from cosim.alignment.nav import euler_rate_matrix_inv
 from cosim.alignment.static_model import FilterTuning, static_covariance
 from cosim.estimation import anees_bounds
 from cosim.estimation.covariance import CovarianceHistory
+from cosim.models.constants import ARCMIN, ARCSEC, OMEGA_IE
+from cosim.models.earth import gravity
+from cosim.models.turntable import Turntable
+from cosim.package_data import scenario_file
 from cosim.scenario import load_scenario
 from cosim.verify.campaign import CampaignError, campaign_jobs, prepare, simulate
 from cosim.verify.records import Histories
-from models.constants import ARCMIN, ARCSEC, OMEGA_IE
-from models.earth import gravity
-from models.turntable import Turntable
 
 ROOT = Path(__file__).resolve().parents[2]
-STATIC = ROOT / "scenarios" / "sins_north_finding.toml"
-ROTATING = ROOT / "scenarios" / "sins_north_finding_rotating.toml"
+STATIC = scenario_file("sins_north_finding.toml")
+ROTATING = scenario_file("sins_north_finding_rotating.toml")
 COLUMNS = ("align.rpy_err", "align.rpy_sigma", "align.phi_err", "align.phi_sigma", "align.nees")
 
 #: The issue's covariance-analysis figures [arcmin]: (case, R sigma [m/s], time [s]) -> value.

@@ -54,7 +54,7 @@ import allantools
 import numpy as np
 from scipy.optimize import nnls
 
-from models.constants import DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MICRO_G
+from cosim.models.constants import DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MICRO_G
 
 #: The four noise terms, in the order of the fitted coefficients.
 TERMS = ("quantization", "white", "bias_instability", "random_walk")

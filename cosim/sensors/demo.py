@@ -15,8 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.package_data import scenario_file
+
 #: The seed 003 scenario, whose IMU the demo log records.
-SEED003 = Path(__file__).resolve().parents[2] / "scenarios" / "sins_north_finding.toml"
+SEED003 = scenario_file("sins_north_finding.toml")
 
 
 def write_demo_log(path: str | Path, seed: int = 7, stop: str = "300 s") -> Path:

@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from cosim.models.block import input_, output
 from cosim.sensors.replay import REPLAY_PARAMETERS, LogReplay
-from models.block import input_, output
 
 
 class MasterInsLogReplay(LogReplay):

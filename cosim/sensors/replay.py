@@ -41,7 +41,7 @@ import numpy as np
 from pythonfmu import Fmi2Causality, Fmi2Variability
 from pythonfmu.variables import String
 
-from models.block import Block, input_, output, parameter, same_step
+from cosim.models.block import Block, input_, output, parameter, same_step
 
 #: Folder of the log inside an FMU's resources, and its files.
 RESOURCE_DIR = "imu_log"

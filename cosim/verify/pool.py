@@ -71,7 +71,7 @@ __all__ = [
 ]
 
 #: Modules the forkserver imports once, so that forked workers start without imports.
-PRELOAD = ["cosim.verify.workers", "cosim.verify.pool", "cosim.alignment", "models"]
+PRELOAD = ["cosim.verify.workers", "cosim.verify.pool", "cosim.alignment", "cosim.models"]
 #: Imported last by the forkserver: the built-in blocks' identities, cached for every worker.
 PRELOAD_LAST = "cosim.verify.preload"
 #: A run whose worker process dies this many times is recorded as crashed.
@@ -105,7 +105,7 @@ def pool_context() -> multiprocessing.context.BaseContext:
     """
     if "forkserver" in multiprocessing.get_all_start_methods():
         ctx = multiprocessing.get_context("forkserver")
-        loaded = {m for m in sys.modules if m.split(".")[0] in ("cosim", "models")}
+        loaded = {m for m in sys.modules if m.split(".")[0] == "cosim"}
         rest = sorted((loaded | _builtin_blocks()) - {*PRELOAD, PRELOAD_LAST})
         ctx.set_forkserver_preload([*PRELOAD, *rest, PRELOAD_LAST])
         return ctx
@@ -116,7 +116,7 @@ def _builtin_blocks() -> set[str]:
     import pkgutil
 
     import cosim.alignment
-    import models
+    from cosim import models
 
     return {
         f"{package.__name__}.{info.name}"

@@ -26,9 +26,7 @@ def _identify_builtin_blocks() -> tuple[str, ...]:
     for name in registry.names():
         with contextlib.suppress(Exception):
             cls = registry.find_block(name)
-            if cls.__module__.split(".")[0] == "models" or cls.__module__.startswith(
-                "cosim.alignment."
-            ):
+            if cls.__module__.startswith(("cosim.models.", "cosim.alignment.")):
                 class_identity(cls)
                 done.append(name)
     return tuple(done)

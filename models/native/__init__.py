@@ -8,19 +8,25 @@ fallback and the readable statement of each model; both give the same outputs to
 
 Where the library lives. :func:`build` compiles ``kernels.c`` into
 ``models/native/build/kernels-<sha256 of the source, 16 hex>.so`` (``make setup`` and
-``make fmus`` do it; a missing library is also built at first use when the folder is
-writable and the package is not an FMU's copy). The name carries the source's hash, so a
-changed source is never served by a stale library. ``make fmus`` packs the library with the
-``models`` package into every FMU's resources, so an FMU loads it from its own copy (no
-compiler needed where the FMU runs).
+``make fmus`` do it; a missing library is also built at first use unless the package is an
+FMU's copy). When that folder is not writable (a wheel installed into a read-only
+site-packages) the library goes to the user's cache instead, :func:`cache_dir`
+(``$XDG_CACHE_HOME/ins-cosim/kernels`` or ``~/.cache/ins-cosim/kernels``). The name carries
+the source's hash, so a changed source is never served by a stale library. ``make fmus``
+packs the library (not the C sources) with the models package into every FMU's
+resources, so an FMU loads it from its own copy (no compiler needed where the FMU runs).
+A failed compilation is tried once per process and reported in one short line (the first
+compiler error; ``python -m cosim.models.native`` prints the whole log).
 
 Which path runs (:func:`library`, read when a block initialises):
 
 * ``INS_COSIM_NATIVE=0`` in the environment: numpy, always;
 * otherwise the compiled kernels when the library loads, else numpy (no compiler, a build
-  error, an FMU host on which the library does not load): same numbers to 1e-12.
+  error, an FMU host on which the library does not load): same numbers to 1e-12, and one
+  warning (:class:`NativeFallbackWarning`) per process tree names the reason.
 
-:func:`status` says which, and why.
+:func:`status` says which, and why; every run's provenance records it
+(``software.kernels`` in results.json and in the verification report).
 """
 
 from __future__ import annotations
@@ -31,6 +37,7 @@ import os
 import shutil
 import subprocess
 import tempfile
+import warnings
 from collections.abc import Callable
 from operator import attrgetter, is_
 from pathlib import Path
@@ -49,7 +56,34 @@ ENV = "INS_COSIM_NATIVE"
 #: Compiler flags: IEEE arithmetic (no -ffast-math, no contraction into FMA).
 CFLAGS = ("-O2", "-std=c99", "-shared", "-fPIC", "-ffp-contract=off")
 
+#: Set in the environment once the fall-back warning was given, so that worker processes
+#: started afterwards do not repeat it.
+WARNED_ENV = "INS_COSIM_NATIVE_WARNED"
+
 _state: dict[str, object] = {}
+
+
+class NativeFallbackWarning(UserWarning):
+    """The compiled kernels are unavailable: the models run their numpy code (slower)."""
+
+
+def cache_dir() -> Path:
+    """The per-user folder for libraries built where the package folder is read-only.
+
+    Returns
+    -------
+    Path
+        ``$XDG_CACHE_HOME/ins-cosim/kernels``, or ``~/.cache/ins-cosim/kernels``.
+    """
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "ins-cosim" / "kernels"
+
+
+def _writable(folder: Path) -> bool:
+    """True when ``folder`` (or, missing, the nearest existing parent) is writable."""
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    return os.access(folder, os.W_OK)
 
 
 def library_path() -> Path:
@@ -60,19 +94,37 @@ def library_path() -> Path:
     Path
         ``models/native/build/kernels-<hash>.so``, the hash being the first 16 hex
         digits of the SHA-256 of the C sources and headers (:data:`SOURCES`,
-        :data:`HEADERS`: names and contents).
+        :data:`HEADERS`: names and contents); the same name in :func:`cache_dir` when it
+        is there or the package folder is read-only. A copy without C sources (an FMU's
+        resources) has the library it was packed with.
     """
+    if not SOURCES:
+        packed = sorted(BUILD_DIR.glob("kernels-*.so"))
+        return packed[-1] if packed else BUILD_DIR / "kernels-unavailable.so"
     sha = hashlib.sha256()
     for source in SOURCES + HEADERS:
         sha.update(source.name.encode() + b"\0" + source.read_bytes() + b"\0")
-    digest = sha.hexdigest()[:16]
-    return BUILD_DIR / f"kernels-{digest}.so"
+    name = f"kernels-{sha.hexdigest()[:16]}.so"
+    cached = cache_dir() / name
+    if (BUILD_DIR / name).is_file() or (not cached.is_file() and _writable(BUILD_DIR)):
+        return BUILD_DIR / name
+    return cached
+
+
+def _short(stderr: str) -> str:
+    """The first compiler error of a log, and how many lines followed."""
+    lines = [line for line in stderr.strip().splitlines() if line.strip()]
+    first = next((line for line in lines if "error" in line), lines[0] if lines else "")
+    more = len(lines) - 1
+    return first.strip() + (f" (+{more} more lines: python -m cosim.models.native)" if more else "")
 
 
 def _in_fmu() -> bool:
     """True when this package is the copy inside an unpacked FMU's resources."""
-    resources = HERE.parents[1]
-    return resources.name == "resources" and (resources.parent / "modelDescription.xml").is_file()
+    for resources in HERE.parents:
+        if resources.name == "resources" and (resources.parent / "modelDescription.xml").is_file():
+            return True
+    return False
 
 
 def _compiler() -> str | None:
@@ -104,29 +156,55 @@ def build(force: bool = False) -> Path:
     target = library_path()
     if target.is_file() and not force:
         return target
+    if "build_error" in _state and not force:
+        raise RuntimeError(str(_state["build_error"]))
     cc = _compiler()
-    if cc is None:
-        raise RuntimeError(
-            "no C compiler for models/native/kernels.c: expected $CC, 'gcc' or 'cc' on the "
+    if not SOURCES:
+        error = f"{target.name} is not in this copy of the models (no C sources to build)"
+    elif cc is None:
+        error = (
+            "no C compiler for the models' kernels: expected $CC, 'gcc' or 'cc' on the "
             "PATH (install gcc); the models run their numpy code meanwhile"
         )
-    BUILD_DIR.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".kernels-", suffix=".so", dir=BUILD_DIR)
+    else:
+        error = _compile(cc, target)
+    if error:
+        _state["build_error"] = error
+        raise RuntimeError(error)
+    if target.parent == BUILD_DIR:
+        for old in BUILD_DIR.glob("kernels-*.so"):
+            if old != target:
+                old.unlink(missing_ok=True)
+    return target
+
+
+def build_log() -> str:
+    """The compiler's whole output of this process's failed build ("" when none failed).
+
+    Returns
+    -------
+    str
+    """
+    return str(_state.get("build_log", ""))
+
+
+def _compile(cc: str, target: Path) -> str:
+    """Compile :data:`SOURCES` into ``target`` atomically; "" or the short error."""
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".kernels-", suffix=".so", dir=target.parent)
     os.close(fd)
     try:
         proc = subprocess.run(
             [cc, *CFLAGS, "-o", tmp, *map(str, SOURCES), "-lm"], capture_output=True, text=True
         )
         if proc.returncode != 0:
-            raise RuntimeError(f"compiling models/native/*.c failed ({cc}):\n{proc.stderr.strip()}")
+            _state["build_log"] = proc.stderr
+            return f"compiling the models' kernels failed ({cc}): {_short(proc.stderr)}"
         os.replace(tmp, target)
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
-    for old in BUILD_DIR.glob("kernels-*.so"):
-        if old != target:
-            old.unlink(missing_ok=True)
-    return target
+    return ""
 
 
 def _declare(lib: ctypes.CDLL) -> None:
@@ -161,6 +239,10 @@ def _load() -> ctypes.CDLL | None:
     except (OSError, RuntimeError, AttributeError) as exc:
         lib = None
         _state["why"] = f"numpy (compiled kernels unavailable: {exc})"
+        if os.environ.get(WARNED_ENV) != "1":
+            os.environ[WARNED_ENV] = "1"
+            message = f"the models run their numpy code, slower: {exc}"
+            warnings.warn(message, NativeFallbackWarning, stacklevel=2)
     _state["lib"] = lib
     return lib
 
