@@ -10,6 +10,9 @@ instance outputs its inputs unchanged.
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
 import sys
 import tomllib
 import zipfile
@@ -135,3 +138,46 @@ def test_every_package_folder_is_listed_in_pyproject() -> None:
     assert mapped["cosim.models"] == "models"
     assert (ROOT / mapped["cosim.package_data.interfaces"] / "imu.toml").is_file()
     assert (ROOT / mapped["cosim.package_data.scenarios"] / "sins_north_finding.toml").is_file()
+
+
+TOGETHER = r"""
+import json, sys
+from fmpy import extract, read_model_description
+from fmpy.fmi2 import FMU2Slave
+
+slaves = []
+for path in sys.argv[1:]:
+    md = read_model_description(path)
+    slave = FMU2Slave(guid=md.guid, unzipDirectory=extract(path),
+                      modelIdentifier=md.coSimulation.modelIdentifier, instanceName=md.modelName)
+    slave.instantiate()
+    slave.setupExperiment(startTime=0.0)
+    slave.enterInitializationMode()
+    slave.exitInitializationMode()
+    slaves.append(slave)
+for n in range(10):
+    for slave in slaves:
+        slave.doStep(currentCommunicationPoint=n * 0.01, communicationStepSize=0.01)
+print(json.dumps(sorted(m for m in sys.modules if m.startswith("cosim"))))
+"""
+
+
+def test_fmus_that_carry_different_modules_run_together_in_one_plain_process(
+    fmu_dir: Path, tmp_path: Path
+) -> None:
+    """Each FMU carries only its model's modules; several alive in one Python (as in an
+    fmpy script or libcosim) find each other's modules, none of ins-cosim imported."""
+    names = ("GaussMarkov2", "FirstOrderSensor", "StrapdownImu")
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONPATH",)}
+    proc = subprocess.run(
+        [sys.executable, "-c", TOGETHER, *(str(fmu_dir / f"{n}.fmu") for n in names)],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr
+    loaded = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert {"cosim.models.first_order_sensor", "cosim.models.strapdown_imu"} <= set(loaded)
+    assert "cosim.scenario" not in loaded  # the FMUs' stub, not the installed package

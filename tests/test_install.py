@@ -38,7 +38,7 @@ CHECKOUT_BIN = Path(sys.executable).parent
 FMU_DIR = ROOT / "fmus" / "build"
 MODEL_NAMES = sorted(p.stem for p in (ROOT / "models" / "docs").glob("*.md"))
 
-pytestmark = pytest.mark.slow
+pytestmark = [pytest.mark.slow, pytest.mark.timeout(3600)]
 
 #: Folders of the checkout not copied into the wheel's build tree.
 NOT_BUILT = (".git", ".venv", "out", "build", "dist", "__pycache__", ".pytest_cache", "results")

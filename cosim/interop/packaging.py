@@ -49,9 +49,10 @@ _ins_cosim_fmu_stub = True
 # namespace is freed under the module and the interpreter crashes later.
 # A `cosim` stub package imported earlier in the same process from another FMU's resources
 # may point to a folder deleted when that FMU was unloaded: forget it, so that this FMU
-# imports its own copy; a live stub of another FMU gets this FMU's folder on its path
-# (a log replay FMU carries cosim.sensors, the others do not). A real ins-cosim imported
-# by the host is left alone: the FMU uses its cosim.models.
+# imports its own copy; a live stub of another FMU gets this FMU's folders on its paths
+# (each FMU carries only the modules its model imports, and a log replay FMU carries
+# cosim.sensors). A real ins-cosim imported by the host is left alone: the FMU uses its
+# cosim.models.
 # pythonfmu 0.7's binary also has a use-after-free at process exit: a C++ static
 # shared_ptr is destroyed by the exit handlers, then the library's ELF destructor
 # (finalizePythonInterpreter) decrements the freed control block again, which corrupts
@@ -101,6 +102,11 @@ if _previous is not None and getattr(_previous, "_ins_cosim_fmu_stub", False):
         _own = os.path.join(os.path.abspath(sys.path[0]), "cosim")
         if os.path.isdir(_own) and _own not in _previous.__path__:
             _previous.__path__.append(_own)
+        _models = sys.modules.get("cosim.models")
+        _own_models = os.path.join(_own, "models")
+        if _models is not None and os.path.isdir(_own_models):
+            if _own_models not in _models.__path__:
+                _models.__path__.append(_own_models)
 
 try:
     from {module} import {name}  # noqa: E402,F401
