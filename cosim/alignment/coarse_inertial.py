@@ -183,6 +183,7 @@ class InertialCoarse:
         self._sum_r = np.zeros(3)
         self._sum_br = np.zeros((3, 3))
         self._prev_dth = np.zeros(3)
+        self._prev_dv = np.zeros(3)
 
     def step(self, dtheta_b: ArrayLike, dv_b: ArrayLike, dt: float) -> None:
         """Add one step of measured increments.
@@ -198,17 +199,20 @@ class InertialCoarse:
         """
         dth = np.asarray(dtheta_b, dtype=float)
         dv = np.asarray(dv_b, dtype=float)
-        # first-order rotation compensation; two-sample coning for the attitude
-        self._b = self._b + self.C_b_b0 @ (dv + 0.5 * np.cross(dth, dv))
+        # the rate at the step's end (linear extrapolation of the two last mean rates)
+        w_end = (1.5 * dth - 0.5 * self._prev_dth) / float(dt) if self.n else dth / float(dt)
+        # rotation compensation and two-sample sculling / coning (previous step's increments)
+        scul = (np.cross(self._prev_dth, dv) + np.cross(self._prev_dv, dth)) / 12.0
+        self._b = self._b + self.C_b_b0 @ (dv + 0.5 * np.cross(dth, dv) + scul)
         phi = dth + np.cross(self._prev_dth, dth) / 12.0
-        self._prev_dth = dth
+        self._prev_dth, self._prev_dv = dth, dv
         self.C_b_b0 = self.C_b_b0 @ rotvec_to_dcm_3(phi)
         self.elapsed += float(dt)
         self.n += 1
         r = reference_velocity(self.lat, self.h, [self.elapsed])[0]
         b = self._b
         if np.any(self.lever_b):
-            b = b - self.C_b_b0 @ np.cross(dth / float(dt), self.lever_b)
+            b = b - self.C_b_b0 @ np.cross(w_end, self.lever_b)
         self._sum_b += b
         self._sum_r += r
         self._sum_br += np.outer(b, r)

@@ -63,6 +63,7 @@ from cosim.alignment.nav import (
     STATIC_BASE,
     AlignmentConfigError,
     AlignmentError,
+    Mechanisation,
     Strapdown,
     dcm_to_rotvec_3,
     euler_rate_matrix_inv,
@@ -93,6 +94,15 @@ from models.conventions import (
 FloatArray = NDArray[np.float64]
 
 _I3 = np.eye(3)
+#: init_mode 2's integrator: seed 003's level channel with two-sample coning and sculling
+#: (a swaying base turns about any axis, not about a table axis).
+SWAYING_BASE = Mechanisation(
+    coning="two-sample",
+    transport_rate=False,
+    vertical=False,
+    midpoint_velocity=False,
+    orthonormalise_every=64,
+)
 
 
 # ------------------------------------------------------------------ the block
@@ -298,6 +308,7 @@ class SinsStaticAlignment(Block):
         self._coarse_P = np.zeros((3, 3))
         self._lever = np.asarray(self.lever_s, dtype=float).copy()
         self._has_lever = bool(np.any(self._lever))
+        self._prev_dth = np.zeros(3)
         if self.init_mode == 2:
             self._ic = InertialCoarse(float(self.lat), float(self.h), lever_b=self._lever)
         self.phase = 0.0
@@ -334,8 +345,9 @@ class SinsStaticAlignment(Block):
         return self._nav.C_s_n @ self._C_s_t.T @ table_dcm(float(self.angle)).T
 
     def _start_fine(self, c_s_n: FloatArray, P0: FloatArray | None = None) -> None:
+        mech = SWAYING_BASE if self.init_mode == 2 else STATIC_BASE
         self._nav = Strapdown(
-            c_s_n, float(self.lat), float(self.h), options=STATIC_BASE, table_axis=self._axis
+            c_s_n, float(self.lat), float(self.h), options=mech, table_axis=self._axis
         )
         self._kf.x = np.zeros(N_STATES)
         self._kf.P = self._tun.P0() if P0 is None else P0
@@ -378,8 +390,8 @@ class SinsStaticAlignment(Block):
         assert ic is not None
         ic.step(dth, dv, h)
         done = self._elapsed >= float(self.coarse_time) - 1e-9 * max(1.0, float(self.coarse_time))
-        if ic.n < 3:
-            return
+        if not done and ic.elapsed < 1.0 - 0.5 * h:
+            return  # no running estimate in the first second (too few pairs)
         c_s_n = ic.attitude()
         c_t_n = c_s_n @ self._C_s_t.T
         if done:
@@ -407,6 +419,8 @@ class SinsStaticAlignment(Block):
             self._k_upd = k
         nav = self._nav
         assert nav is not None
+        prev_dth = self._prev_dth if self._n_fine else dth
+        self._prev_dth = dth
         cst_t = self._C_s_t.T
         nav.step(dth, dv, h)
         F = self._F
@@ -423,7 +437,8 @@ class SinsStaticAlignment(Block):
             noise = self._rng.standard_normal(2) * float(self.zupt_noise)
             z = nav.v_n[0:2] + noise
             if self._has_lever:  # the IMU moves about the sway centre at rest
-                w_ns = dth / h - nav.gyro_bias - nav.C_s_n.T @ nav.w_ie
+                w_end = (1.5 * dth - 0.5 * prev_dth) / h  # the rate at the step's end
+                w_ns = w_end - nav.gyro_bias - nav.C_s_n.T @ nav.w_ie
                 u_n = nav.C_s_n @ np.cross(w_ns, self._lever)
                 z = z - u_n[0:2]
                 kf.H = measurement_matrix()
