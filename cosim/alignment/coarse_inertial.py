@@ -159,7 +159,9 @@ class InertialCoarse:
         Latitude [rad] (not at a pole), height [m].
     lever_b : array_like, shape (3,), optional
         Position of the IMU from the sway centre (the point at rest), sensor axes [m]:
-        its velocity ``C_b_b0 (w x l)`` is taken out of each vector.
+        its velocity ``C_b_b0 (w x l) = d(C_b_b0 l)/dt`` is taken out of each vector,
+        exactly as the step mean ``(C_k - C_k-1) l / h`` (the pairs are then the step
+        means of ``b`` and ``r``, the trapezoid of their ends).
 
     Attributes
     ----------
@@ -184,6 +186,8 @@ class InertialCoarse:
         self._sum_br = np.zeros((3, 3))
         self._prev_dth = np.zeros(3)
         self._prev_dv = np.zeros(3)
+        self._b_prev = np.zeros(3)
+        self._r_prev = np.zeros(3)
 
     def step(self, dtheta_b: ArrayLike, dv_b: ArrayLike, dt: float) -> None:
         """Add one step of measured increments.
@@ -199,20 +203,24 @@ class InertialCoarse:
         """
         dth = np.asarray(dtheta_b, dtype=float)
         dv = np.asarray(dv_b, dtype=float)
-        # the rate at the step's end (linear extrapolation of the two last mean rates)
-        w_end = (1.5 * dth - 0.5 * self._prev_dth) / float(dt) if self.n else dth / float(dt)
         # rotation compensation and two-sample sculling / coning (previous step's increments)
         scul = (np.cross(self._prev_dth, dv) + np.cross(self._prev_dv, dth)) / 12.0
         self._b = self._b + self.C_b_b0 @ (dv + 0.5 * np.cross(dth, dv) + scul)
         phi = dth + np.cross(self._prev_dth, dth) / 12.0
         self._prev_dth, self._prev_dv = dth, dv
+        C_prev = self.C_b_b0
         self.C_b_b0 = self.C_b_b0 @ rotvec_to_dcm_3(phi)
         self.elapsed += float(dt)
         self.n += 1
         r = reference_velocity(self.lat, self.h, [self.elapsed])[0]
         b = self._b
         if np.any(self.lever_b):
-            b = b - self.C_b_b0 @ np.cross(w_end, self.lever_b)
+            # step means: the IMU's velocity about the point at rest, d(C_b_b0 l)/dt, has
+            # the exact mean (C_k - C_k-1) l / h over the step; b and r by the trapezoid
+            b_mean = 0.5 * (self._b_prev + b) - (self.C_b_b0 - C_prev) @ self.lever_b / float(dt)
+            r_mean = 0.5 * (self._r_prev + r)
+            self._b_prev, self._r_prev = b, r
+            b, r = b_mean, r_mean
         self._sum_b += b
         self._sum_r += r
         self._sum_br += np.outer(b, r)

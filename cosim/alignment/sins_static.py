@@ -308,7 +308,6 @@ class SinsStaticAlignment(Block):
         self._coarse_P = np.zeros((3, 3))
         self._lever = np.asarray(self.lever_s, dtype=float).copy()
         self._has_lever = bool(np.any(self._lever))
-        self._prev_dth = np.zeros(3)
         if self.init_mode == 2:
             self._ic = InertialCoarse(float(self.lat), float(self.h), lever_b=self._lever)
         self.phase = 0.0
@@ -419,8 +418,6 @@ class SinsStaticAlignment(Block):
             self._k_upd = k
         nav = self._nav
         assert nav is not None
-        prev_dth = self._prev_dth if self._n_fine else dth
-        self._prev_dth = dth
         cst_t = self._C_s_t.T
         nav.step(dth, dv, h)
         F = self._F
@@ -437,10 +434,9 @@ class SinsStaticAlignment(Block):
             noise = self._rng.standard_normal(2) * float(self.zupt_noise)
             z = nav.v_n[0:2] + noise
             if self._has_lever:  # the IMU moves about the sway centre at rest
-                w_end = (1.5 * dth - 0.5 * prev_dth) / h  # the rate at the step's end
-                w_ns = w_end - nav.gyro_bias - nav.C_s_n.T @ nav.w_ie
-                u_n = nav.C_s_n @ np.cross(w_ns, self._lever)
-                z = z - u_n[0:2]
+                # the step's mean velocity against the exact mean of d(C_s_n l)/dt
+                u_n = (nav.C_s_n - nav.C_prev) @ self._lever / h
+                z = 0.5 * (nav.v_prev[0:2] + nav.v_n[0:2]) + noise - u_n[0:2]
                 kf.H = measurement_matrix()
                 kf.H[:, 2:5] = -skew(u_n)[0:2, :]
             kf.update(z)
