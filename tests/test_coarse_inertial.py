@@ -126,6 +126,28 @@ def test_theory_against_a_monte_carlo_of_the_accumulator() -> None:
         assert lo2 <= level / math.sqrt(0.5 * (th.P_phi[0, 0] + th.P_phi[1, 1])) <= hi2
 
 
+def test_bias_sensitivities_predict_the_error_of_each_run() -> None:
+    """No noise, drawn biases: ``phi_err = J_a nabla_n + J_g eps_n`` run by run (to 2 %).
+
+    These sensitivities (with their signs) give the fine filter's P0 cross-covariances.
+    """
+    h, T = 0.1, 40.0
+    c = euler_to_dcm_3(RPY)
+    w_b = c.T @ earth_rate(LAT)
+    f_b = c.T @ np.array([0.0, 0.0, -float(gravity(LAT))])
+    th = inertial_coarse_theory(T, LAT, dt=h)
+    rng = np.random.default_rng(3)
+    for _ in range(3):
+        eps_b = 0.02 * DEG_PER_HOUR * rng.standard_normal(3)
+        nab_b = 100.0 * MICRO_G * rng.standard_normal(3)
+        ic = InertialCoarse(LAT)
+        for _k in range(int(round(T / h))):
+            ic.step((w_b + eps_b) * h, (f_b + nab_b) * h, h)
+        err = dcm_to_rotvec_3(ic.attitude() @ c.T)
+        pred = th.J_accel @ (c @ nab_b) + th.J_gyro @ (c @ eps_b)
+        assert np.linalg.norm(err - pred) < 0.02 * np.linalg.norm(pred)
+
+
 def test_theory_tends_to_the_one_position_limit_and_falls_with_time() -> None:
     sg = 0.02 * DEG_PER_HOUR
     s = [heading_sigma_inertial(T, LAT, arw=0.01 * DEG_PER_SQRT_HOUR, gyro_bias=0.0)
