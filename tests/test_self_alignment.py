@@ -84,15 +84,17 @@ def test_acceptance_7_shipped_real_sensor_scenario_on_a_swaying_log(tmp_path: Pa
     """Acceptance 7: a log written from the jittering base, replayed by the shipped scenario.
 
     The scenario starts from the coarse stage (init_mode 2; the stated attitude only
-    computes the errors); its heading error at 300 s meets acceptance 1's figure: within
-    3 sigma of the filter's own bound and within the 9' requirement.
+    computes the errors); its heading error at 300 s, taken against the true attitude of
+    the simulation that wrote the log, meets acceptance 1's figure for one run: within 3
+    sigma of the filter's own bound and within the 9' of SWAY-HDG-300.
     """
     from cosim.sensors.logs import write_csv
 
     text = REAL.read_text()
-    assert "init_mode = 2" in text and "init_offset" not in text.split("[blocks.align]")[1]
+    params = cosim.load_scenario(REAL).blocks["align"].parameters
+    assert params["init_mode"] == 2 and "init_offset" not in params
     sc = cosim.load_scenario(SWAY)
-    sc.outputs = ["imu.dtheta_meas_b", "imu.dv_meas_b"]
+    sc.outputs = ["imu.dtheta_meas_b", "imu.dv_meas_b", "base.rpy"]
     res = cosim.run(sc, record_every=1)
     dth = np.column_stack([res[f"imu.dtheta_meas_b[{i}]"] for i in (1, 2, 3)])
     dv = np.column_stack([res[f"imu.dv_meas_b[{i}]"] for i in (1, 2, 3)])
@@ -102,4 +104,7 @@ def test_acceptance_7_shipped_real_sensor_scenario_on_a_swaying_log(tmp_path: Pa
     out = cosim.run(cosim.load_scenario(real), record_every=10)
     err, sig = out["align.rpy_err[3]"][-1], out["align.rpy_sigma[3]"][-1]
     assert out["align.phase"][-1] == 1.0
-    assert abs(err) <= 3.0 * sig and abs(err) <= 9.0
+    # the scenario's errors are against the stated (mean) attitude; the base's yaw jitter
+    # at 300 s (3' rms) is known here from the simulation that wrote the log
+    jitter = (res["base.rpy[3]"][-1] - 30.0 * DEG) / ARCMIN
+    assert abs(err - jitter) <= 3.0 * sig and abs(err - jitter) <= 9.0  # estimate - truth

@@ -12,6 +12,18 @@ perfectly still; ``zupt_noise`` adds white noise of that sigma to each measureme
 (the disturbance of a quasi-static base that seed 003's R stands for; the block's
 ``seed`` draws it).
 
+Swaying bases (``init_mode = 2``, issue 26; docs/self_alignment.md): the coarse stage
+is the inertial-frame alignment of :mod:`cosim.alignment.coarse_inertial`; the fine
+filter starts from it with the P0 of :func:`cosim.alignment.self_align.coarse_p0`
+(the coarse error theory, cross-covariances with the biases included), integrates with
+:data:`SWAYING_BASE` (two-sample coning and sculling), couples the misalignment through
+the measured specific force ``f_n`` (not ``[0, 0, -g]``) and, with ``lever_s``, updates
+the velocity of the point at rest: ``z = mean(v^_NE) - ((C_k - C_k-1) l / h)_NE``,
+``H_psi = -[u x]_NE``. A coarse window whose theoretical heading sigma exceeds
+``coarse_sigma_max`` is refused at start-up. During the window the outputs carry the
+running coarse estimate and the theory's sigma (from 1 s on). Modes 0 and 1 are as
+before.
+
 Mechanisation (sensor frame, every step)
 ----------------------------------------
 The increments are corrected with the bias estimates (the integrator's
