@@ -12,6 +12,18 @@ perfectly still; ``zupt_noise`` adds white noise of that sigma to each measureme
 (the disturbance of a quasi-static base that seed 003's R stands for; the block's
 ``seed`` draws it).
 
+Swaying bases (``init_mode = 2``, issue 26; docs/self_alignment.md): the coarse stage
+is the inertial-frame alignment of :mod:`cosim.alignment.coarse_inertial`; the fine
+filter starts from it with the P0 of :func:`cosim.alignment.self_align.coarse_p0`
+(the coarse error theory, cross-covariances with the biases included), integrates with
+:data:`SWAYING_BASE` (two-sample coning and sculling), couples the misalignment through
+the measured specific force ``f_n`` (not ``[0, 0, -g]``) and, with ``lever_s``, updates
+the velocity of the point at rest: ``z = mean(v^_NE) - ((C_k - C_k-1) l / h)_NE``,
+``H_psi = -[u x]_NE``. A coarse window whose theoretical heading sigma exceeds
+``coarse_sigma_max`` is refused at start-up. During the window the outputs carry the
+running coarse estimate and the theory's sigma (from 1 s on). Modes 0 and 1 are as
+before.
+
 Mechanisation (sensor frame, every step)
 ----------------------------------------
 The increments are corrected with the bias estimates (the integrator's
@@ -58,14 +70,17 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cosim.alignment.coarse import coarse_alignment
+from cosim.alignment.coarse_inertial import InertialCoarse
 from cosim.alignment.nav import (
     STATIC_BASE,
     AlignmentConfigError,
     AlignmentError,
+    Mechanisation,
     Strapdown,
     dcm_to_rotvec_3,
     euler_rate_matrix_inv,
 )
+from cosim.alignment.self_align import coarse_p0, coarse_theory_cached, required_coarse_time
 from cosim.alignment.static_model import (
     N_STATES,
     SEED003,
@@ -80,11 +95,26 @@ from cosim.alignment.static_model import (
 from cosim.estimation import KalmanFilter
 from cosim.models.block import Block, input_, output, parameter
 from cosim.models.constants import ARCMIN, DEG
-from cosim.models.conventions import dcm_to_euler_3, euler_to_dcm_3, rotvec_to_dcm_3, wrap_angle
+from cosim.models.conventions import (
+    dcm_to_euler_3,
+    euler_to_dcm_3,
+    rotvec_to_dcm_3,
+    skew,
+    wrap_angle,
+)
 
 FloatArray = NDArray[np.float64]
 
 _I3 = np.eye(3)
+#: init_mode 2's integrator: seed 003's level channel with two-sample coning and sculling
+#: (a swaying base turns about any axis, not about a table axis).
+SWAYING_BASE = Mechanisation(
+    coning="two-sample",
+    transport_rate=False,
+    vertical=False,
+    midpoint_velocity=False,
+    orthonormalise_every=64,
+)
 
 
 # ------------------------------------------------------------------ the block
@@ -97,8 +127,29 @@ class SinsStaticAlignment(Block):
     variables = (
         parameter("lat", 45.0 * DEG, "rad", "latitude"),
         parameter("h", 0.0, "m", "height"),
-        parameter("init_mode", 0, description="0: coarse alignment first; 1: truth + init_offset"),
-        parameter("coarse_time", 5.0, "s", "coarse alignment window (init_mode 0)"),
+        parameter(
+            "init_mode",
+            0,
+            description=(
+                "0: analytic coarse alignment first (still base); 1: truth + init_offset "
+                "(simulation studies); 2: inertial-frame coarse alignment first (sway-robust, "
+                "P0 from its error theory; docs/self_alignment.md)"
+            ),
+        ),
+        parameter("coarse_time", 5.0, "s", "coarse alignment window (init_mode 0 and 2)"),
+        parameter(
+            "coarse_sigma_max",
+            DEG,
+            "rad",
+            "init_mode 2: largest heading 1-sigma of the coarse result (error theory) the "
+            "fine filter accepts; a longer one stops the run naming the coarse_time needed",
+        ),
+        parameter(
+            "lever_s",
+            _ZERO3,
+            "m",
+            "init_mode 2: IMU position from the sway centre (the point at rest), sensor axes",
+        ),
         parameter(
             "init_offset",
             (DEG, DEG, DEG),
@@ -143,8 +194,25 @@ class SinsStaticAlignment(Block):
         output("phi_sigma", _ZERO3, "arcmin", "1-sigma of phi_err from P"),
         output("rpy_err", _ZERO3, "arcmin", "roll, pitch, heading error, estimate minus truth"),
         output("rpy_sigma", _ZERO3, "arcmin", "1-sigma of rpy_err from P"),
-        output("nees", 0.0, "1", "NEES of the three angles (chi-square, 3 dof)"),
-        output("nis", 0.0, "1", "NIS of the last zero-velocity update (chi-square, 2 dof)"),
+        output(
+            "nees",
+            0.0,
+            "1",
+            "NEES of the three angles phi_err with their covariance (chi-square, 3 dof; "
+            "needs rpy_true)",
+        ),
+        output(
+            "nis",
+            0.0,
+            "1",
+            "NIS of the last zero-velocity update (chi-square, 2 dof; 0 before the first)",
+        ),
+        output(
+            "coarse_sigma",
+            _ZERO3,
+            "arcmin",
+            "init_mode 2: error theory's 1-sigma of the coarse attitude N, E, D at its end",
+        ),
         output("accel_bias", (0.0, 0.0), "m/s2", "estimated accelerometer bias, table x, y"),
         output("gyro_drift", _ZERO3, "rad/s", "estimated gyro drift, table x, y, z"),
         output("accel_bias_sigma", (0.0, 0.0), "m/s2", "1-sigma of accel_bias"),
@@ -167,12 +235,12 @@ class SinsStaticAlignment(Block):
         )
 
     def _check(self) -> None:
-        if self.init_mode not in (0, 1):
+        if self.init_mode not in (0, 1, 2):
             raise AlignmentConfigError(
-                f"SinsStaticAlignment.init_mode must be 0 (coarse) or 1 (truth + offset), "
-                f"got {self.init_mode}"
+                f"SinsStaticAlignment.init_mode must be 0 (analytic coarse), 1 (truth + "
+                f"offset) or 2 (inertial-frame coarse), got {self.init_mode}"
             )
-        if self.init_mode == 0 and not self.coarse_time > 0.0:
+        if self.init_mode in (0, 2) and not self.coarse_time > 0.0:
             raise AlignmentConfigError(
                 f"SinsStaticAlignment.coarse_time must be > 0 s, got {self.coarse_time}"
             )
@@ -195,6 +263,34 @@ class SinsStaticAlignment(Block):
         if tun.q_accel < 0.0 or tun.q_gyro < 0.0 or self.zupt_noise < 0.0:
             raise AlignmentConfigError(
                 "SinsStaticAlignment: q_accel, q_gyro and zupt_noise must be >= 0"
+            )
+        if self.init_mode == 2:
+            self._check_coarse_window(tun)
+
+    def _check_coarse_window(self, tun: FilterTuning) -> None:
+        """Refuse a coarse window whose theoretical heading sigma exceeds coarse_sigma_max."""
+        smax = float(self.coarse_sigma_max)
+        if not smax > 0.0:
+            raise AlignmentConfigError(
+                f"SinsStaticAlignment.coarse_sigma_max must be > 0, got {smax}"
+            )
+        T = float(self.coarse_time)
+        dt = min(0.1, T / 10.0)
+        th = coarse_theory_cached(T, float(self.lat), float(self.h), dt, tun)
+        sig = float(np.sqrt(th.P_phi[2, 2]))
+        if sig > smax:
+            need = required_coarse_time(float(self.lat), float(self.h), dt, tun, smax)
+            fix = (
+                f"set coarse_time >= {need:.0f} s"
+                if need is not None
+                else "no window reaches it with this IMU (gyro bias limit): raise "
+                "coarse_sigma_max or use a better IMU"
+            )
+            raise AlignmentConfigError(
+                f"SinsStaticAlignment: init_mode 2 with coarse_time = {T:g} s leaves a "
+                f"coarse heading 1-sigma of {sig / ARCMIN:.1f} arcmin (error theory for "
+                f"q_gyro, q_accel, p0_gyro_drift, p0_accel_bias) above coarse_sigma_max = "
+                f"{smax / ARCMIN:.1f} arcmin, beyond the fine filter's linear model: {fix}"
             )
 
     def initialize(self) -> None:
@@ -220,6 +316,12 @@ class SinsStaticAlignment(Block):
         self._k_upd: int | None = None
         self._n_fine = 0
         self._C0_b_n = _I3.copy()
+        self._ic: InertialCoarse | None = None
+        self._coarse_P = np.zeros((3, 3))
+        self._lever = np.asarray(self.lever_s, dtype=float).copy()
+        self._has_lever = bool(np.any(self._lever))
+        if self.init_mode == 2:
+            self._ic = InertialCoarse(float(self.lat), float(self.h), lever_b=self._lever)
         self.phase = 0.0
         if self.init_mode == 1:
             offset = np.asarray(self.init_offset, dtype=float)
@@ -228,6 +330,21 @@ class SinsStaticAlignment(Block):
             c_s_n = self._sensor_dcm(euler_to_dcm_3(self.rpy_true))
             self._start_fine(rotvec_to_dcm_3(offset) @ c_s_n)
         self._publish()
+
+    def _publish_attitude(self, c_b_n: FloatArray, p_att: FloatArray) -> None:
+        """Attitude outputs from an estimated ``C_b_n`` and its (3, 3) covariance [rad^2]."""
+        rpy_hat = dcm_to_euler_3(c_b_n)
+        rpy_true = np.asarray(self.rpy_true, dtype=float)
+        e = dcm_to_rotvec_3(c_b_n @ euler_to_dcm_3(rpy_true).T)
+        m = euler_rate_matrix_inv(rpy_hat)
+        d = (rpy_hat - rpy_true).tolist()
+        self.rpy = rpy_hat
+        self.phi_err = e / ARCMIN
+        self.phi_sigma = np.sqrt(np.diag(p_att)) / ARCMIN
+        self.rpy_err = np.array([wrap_angle(d[0]), d[1], wrap_angle(d[2])]) / ARCMIN
+        self.rpy_sigma = np.sqrt(np.diag(m @ p_att @ m.T)) / ARCMIN
+        if p_att[0, 0] > 0.0:
+            self.nees = quad_form_inv3(e, p_att)
 
     def _sensor_dcm(self, c_b_n: FloatArray) -> FloatArray:
         """``C_s_n`` from a base attitude and the current encoder angle."""
@@ -238,12 +355,13 @@ class SinsStaticAlignment(Block):
         assert self._nav is not None
         return self._nav.C_s_n @ self._C_s_t.T @ table_dcm(float(self.angle)).T
 
-    def _start_fine(self, c_s_n: FloatArray) -> None:
+    def _start_fine(self, c_s_n: FloatArray, P0: FloatArray | None = None) -> None:
+        mech = SWAYING_BASE if self.init_mode == 2 else STATIC_BASE
         self._nav = Strapdown(
-            c_s_n, float(self.lat), float(self.h), options=STATIC_BASE, table_axis=self._axis
+            c_s_n, float(self.lat), float(self.h), options=mech, table_axis=self._axis
         )
         self._kf.x = np.zeros(N_STATES)
-        self._kf.P = self._tun.P0()
+        self._kf.P = self._tun.P0() if P0 is None else P0
         self._C0_b_n = self._base_dcm()
         self._n_fine = 0
         self.phase = 1.0
@@ -264,9 +382,12 @@ class SinsStaticAlignment(Block):
                 "the turntable moved during coarse alignment; hold it (Turntable "
                 "rotation_start >= coarse_time) or use init_mode = 1"
             )
+        self._elapsed += h
+        if self._ic is not None:
+            self._inertial_coarse_step(dth, dv, h)
+            return
         self._sum_dth += dth
         self._sum_dv += dv
-        self._elapsed += h
         if self._elapsed >= float(self.coarse_time) - 1e-9 * max(1.0, float(self.coarse_time)):
             T = self._elapsed
             self._start_fine(
@@ -274,6 +395,29 @@ class SinsStaticAlignment(Block):
                     self._sum_dv / T, self._sum_dth / T, float(self.lat), float(self.h)
                 )
             )
+
+    def _inertial_coarse_step(self, dth: FloatArray, dv: FloatArray, h: float) -> None:
+        ic = self._ic
+        assert ic is not None
+        ic.step(dth, dv, h)
+        done = self._elapsed >= float(self.coarse_time) - 1e-9 * max(1.0, float(self.coarse_time))
+        if not done and ic.elapsed < 1.0 - 0.5 * h:
+            return  # no running estimate in the first second (too few pairs)
+        c_s_n = ic.attitude()
+        c_t_n = c_s_n @ self._C_s_t.T
+        if done:
+            th = coarse_theory_cached(ic.elapsed, float(self.lat), float(self.h), h, self._tun)
+            self._coarse_P = th.P_phi
+            self.coarse_sigma = np.sqrt(np.diag(th.P_phi)) / ARCMIN
+            self._ic = None
+            self._start_fine(c_s_n, coarse_p0(th, c_t_n, self._tun))
+            return
+        # running estimate during the window, 1-sigma from the theory at whole seconds
+        sec = int(ic.elapsed + 0.5 * h)
+        if sec >= 1 and abs(ic.elapsed - sec) < 0.5 * h:
+            th = coarse_theory_cached(float(sec), float(self.lat), float(self.h), h, self._tun)
+            self._coarse_P = th.P_phi
+        self._publish_attitude(c_s_n @ self._C_s_t.T, self._coarse_P)
 
     def _fine_step(self, dth: FloatArray, dv: FloatArray, h: float) -> None:
         if self._k_upd is None:
@@ -292,13 +436,22 @@ class SinsStaticAlignment(Block):
         c_t_n = nav.mean_attitude() @ cst_t
         F[0:2, 5:7] = c_t_n[0:2, 0:2]
         F[2:5, 7:10] = -c_t_n
+        if self.init_mode == 2:  # the specific force of a swaying base, not just -g
+            F[0:2, 2:5] = skew(nav.dv_n / h)[0:2, :]
         Phi, Qd = discretize_taylor(F, self._Gq, h)
         kf = self._kf
         kf.predict(F=Phi, Q=Qd)
         self._n_fine += 1
         if self._n_fine % self._k_upd == 0:
             noise = self._rng.standard_normal(2) * float(self.zupt_noise)
-            kf.update(nav.v_n[0:2] + noise)
+            z = nav.v_n[0:2] + noise
+            if self._has_lever:  # the IMU moves about the sway centre at rest
+                # the step's mean velocity against the exact mean of d(C_s_n l)/dt
+                u_n = (nav.C_s_n - nav.C_prev) @ self._lever / h
+                z = 0.5 * (nav.v_prev[0:2] + nav.v_n[0:2]) + noise - u_n[0:2]
+                kf.H = measurement_matrix()
+                kf.H[:, 2:5] = -skew(u_n)[0:2, :]
+            kf.update(z)
             x = kf.x
             nav.correct(rotation=rotvec_to_dcm_3(x[2:5]), d_v=np.array([x[0], x[1], 0.0]))
             self._bias_a += x[5:7]
@@ -316,22 +469,11 @@ class SinsStaticAlignment(Block):
         if self._nav is None:
             return
         c_b_n = self._base_dcm()
-        rpy_hat = dcm_to_euler_3(c_b_n)
-        rpy_true = np.asarray(self.rpy_true, dtype=float)
-        e = dcm_to_rotvec_3(c_b_n @ euler_to_dcm_3(rpy_true).T)
         P = self._kf.P
-        p_att = P[2:5, 2:5]
-        m = euler_rate_matrix_inv(rpy_hat)
+        self._publish_attitude(c_b_n, P[2:5, 2:5])
         sd = np.sqrt(np.diag(P))
-        d = (rpy_hat - rpy_true).tolist()
-        self.rpy = rpy_hat
         self.v_n = self._nav.v_n.copy()
         self.phi_hat = dcm_to_rotvec_3(self._C0_b_n @ c_b_n.T) / ARCMIN
-        self.phi_err = e / ARCMIN
-        self.phi_sigma = sd[2:5] / ARCMIN
-        self.rpy_err = np.array([wrap_angle(d[0]), d[1], wrap_angle(d[2])]) / ARCMIN
-        self.rpy_sigma = np.sqrt(np.diag(m @ p_att @ m.T)) / ARCMIN
-        self.nees = quad_form_inv3(e, p_att)
         self.accel_bias = self._bias_a.copy()
         self.gyro_drift = self._bias_g.copy()
         self.accel_bias_sigma = sd[5:7]
