@@ -1,7 +1,11 @@
-"""Shipboard transfer alignment (seed 001): slave strapdown, 19-state nonlinear model, scaled UKF.
+"""Transfer alignment (seed 001 and issue 26): slave strapdown, 19-state nonlinear model, UKF.
 
 The block :class:`TransferAlignment` aligns a slave strapdown IMU on a ship's deck to
-the ship's master INS by **velocity matching**: it runs its own strapdown mechanisation
+the ship's master INS by **velocity matching** (``matching = 0``, the default and seed
+001's case; attitude and velocity-plus-attitude matching, ``matching = 1, 2``, and the
+lag state, ``estimate_lag = 1``, run :class:`cosim.alignment.transfer_matching.MatchingFilter`
+in numpy instead, with ``master_period`` for a master slower than the block's step; user
+documentation: ``docs/transfer_alignment.md``): it runs its own strapdown mechanisation
 from the slave's angle and velocity increments (every increment it receives), starts it
 with the master's attitude (so the slave's initial attitude error is the unknown mounting,
 seed 001: roll 1 deg, pitch 1 deg, heading 30 deg, plus the deck flexure), and corrects it
@@ -71,7 +75,13 @@ master axes, ``C_s_b = C_b_n^T C_s_n``, which is the mounting plus the current f
 ``rpy_err = euler(C_b_n^T C^_s_n) - euler(C_b_n^T C_s_n)`` [arcmin], Z-Y-X angles of the
 relative attitude: roll, pitch, heading of the slave relative to the master. Its 1-sigma
 ``rpy_sigma`` maps ``P_phi`` through ``C_n_b`` and the inverse Euler-rate matrix of the
-relative attitude. The rigid mounting estimate is the relative attitude minus the flexure
+relative attitude, both from the **truth** input ``rpy_m_true`` (left unconnected, that
+input is zero and ``rpy_sigma`` is then the sigma of the slave's absolute roll, pitch, yaw
+in NED). Without truth use ``rel_rpy_sigma``: the same mapping from the master's reported
+attitude, the 1-sigma of ``rel_rpy``; ``mount``, ``mount_sigma`` are the rigid mounting
+(relative attitude without the flexure estimate, master axes) and its 1-sigma
+(:func:`cosim.alignment.transfer_matching.estimates`; these four are refreshed once per
+filter period). The rigid mounting estimate is the relative attitude minus the flexure
 estimate ``flex`` (master axes, with its own sigma). In stage 1 the outputs are those of
 the most probable hypothesis (``nis`` too: its own UKF's innovation). Also: ``rel_rpy``
 (the estimated relative attitude, from the master's reported attitude), bias and drift
@@ -152,7 +162,7 @@ _PTR = ctypes.c_void_p
 
 # ----------------------------------------------------------------------------- the block
 class TransferAlignment(Block):
-    """Shipboard transfer alignment by velocity matching: slave strapdown + 19-state scaled UKF."""
+    """Transfer alignment by velocity and/or attitude matching: slave strapdown + scaled UKF."""
 
     variables = (
         parameter("r0", (10.0, 10.0, 5.0), "m", "nominal lever arm master -> slave, master axes"),
@@ -202,7 +212,7 @@ class TransferAlignment(Block):
         input_("rpy_s_true", _ZERO3, "rad", "truth: slave attitude (LeverArm.rpy_s)"),
         input_("rpy_m_true", _ZERO3, "rad", "truth: master attitude (ShipMotion.rpy)"),
         output("rpy_err", _ZERO3, "arcmin", "relative attitude error: roll, pitch, heading"),
-        output("rpy_sigma", _ZERO3, "arcmin", "1-sigma of rpy_err from P"),
+        output("rpy_sigma", _ZERO3, "arcmin", "1-sigma of rpy_err (via rpy_m_true: truth)"),
         output("rel_rpy", _ZERO3, "rad", "estimated slave attitude in master axes (misalignment)"),
         output("flex", _ZERO3, "arcmin", "estimated flexure angle, master axes"),
         output("flex_sigma", _ZERO3, "arcmin", "1-sigma of flex"),
