@@ -7,10 +7,13 @@ Inputs are the true navigation state (NED velocity ``v_n``, attitude
 
     x_d(t_k)      = x_true(t_k - d)                          latency d [s]
     v_master_n    = v_d + e_gm(t_k) + w_k,   w_k ~ N(0, sigma_w^2 I)
-    rpy_master    = wrap(rpy_d + delta)                       constant attitude error
+    rpy_master    = wrap(rpy_d + delta + a_k)    constant error, white a_k ~ N(0, sigma_a^2 I)
     e_gm'         = -e_gm / tau + u,   E[u u] = 2 sigma_gm^2 / tau   (per axis)
     lat_master, lon_master, h_master = position delayed by d (no errors)
 
+``a_k`` (``attitude_noise_std`` = sigma_a, per sample, on roll, pitch, yaw) comes from a
+generator of its own, ``default_rng([seed, 1])``, drawn only when sigma_a > 0: the other
+outputs' random numbers are the same with or without it.
 ``delta = attitude_error + attitude_error_sigma * z`` is drawn once at
 initialisation (Euler-angle errors added to roll, pitch, yaw). The angle outputs
 roll, yaw and longitude are wrapped to (-pi, pi]
@@ -63,6 +66,7 @@ class MasterIns(Block):
         parameter("velocity_noise_std", 0.0, "m/s", "white velocity noise std per sample"),
         parameter("velocity_gm_sigma", 0.0, "m/s", "Gauss-Markov velocity error sigma"),
         parameter("velocity_gm_tau", 100.0, "s", "Gauss-Markov velocity error correlation time"),
+        parameter("attitude_noise_std", 0.0, "rad", "white attitude noise std per sample"),
         parameter("seed", 0, description="random seed"),
         input_("v_n", _V3, "m/s", "true velocity, NED"),
         input_("rpy", _V3, "rad", "true attitude [roll, pitch, yaw] (ZYX)"),
@@ -81,12 +85,18 @@ class MasterIns(Block):
     def initialize(self) -> None:
         if not self.latency >= 0.0:
             raise ValueError(f"MasterIns.latency must be >= 0, got {self.latency}")
-        for name in ("attitude_error_sigma", "velocity_noise_std", "velocity_gm_sigma"):
+        for name in (
+            "attitude_error_sigma",
+            "velocity_noise_std",
+            "velocity_gm_sigma",
+            "attitude_noise_std",
+        ):
             if getattr(self, name) < 0.0:
                 raise ValueError(f"MasterIns.{name} must be >= 0, got {getattr(self, name)}")
         if self.velocity_gm_sigma > 0.0 and not self.velocity_gm_tau > 0.0:
             raise ValueError(f"MasterIns.velocity_gm_tau must be > 0, got {self.velocity_gm_tau}")
         self._rng = np.random.default_rng(int(self.seed))
+        self._rng_att = np.random.default_rng([int(self.seed), 1])
         z = self._rng.standard_normal(6)
         self._delta = np.asarray(self.attitude_error, float) + self.attitude_error_sigma * z[:3]
         self._gm = self.velocity_gm_sigma * z[3:]
@@ -121,7 +131,10 @@ class MasterIns(Block):
         # written in place (the block's buffer views); roll and yaw wrapped with the scalar
         # wrap_angle (the same numbers as its array form), pitch not
         self.v_master_n[:] = x[0:3] + self._gm + white
-        roll, pitch, yaw = (x[3:6] + self._delta).tolist()
+        rpy = x[3:6] + self._delta
+        if self.attitude_noise_std > 0.0:
+            rpy = rpy + self.attitude_noise_std * self._rng_att.standard_normal(3)
+        roll, pitch, yaw = rpy.tolist()
         self.rpy_master[:] = (wrap_angle(roll), pitch, wrap_angle(yaw))
         lat, lon, hgt = x[6:9].tolist()
         self.lat_master = lat

@@ -1,7 +1,11 @@
-"""Shipboard transfer alignment (seed 001): slave strapdown, 19-state nonlinear model, scaled UKF.
+"""Transfer alignment (seed 001 and issue 26): slave strapdown, 19-state nonlinear model, UKF.
 
 The block :class:`TransferAlignment` aligns a slave strapdown IMU on a ship's deck to
-the ship's master INS by **velocity matching**: it runs its own strapdown mechanisation
+the ship's master INS by **velocity matching** (``matching = 0``, the default and seed
+001's case; attitude and velocity-plus-attitude matching, ``matching = 1, 2``, and the
+lag state, ``estimate_lag = 1``, run :class:`cosim.alignment.transfer_matching.MatchingFilter`
+in numpy instead, with ``master_period`` for a master slower than the block's step; user
+documentation: ``docs/transfer_alignment.md``): it runs its own strapdown mechanisation
 from the slave's angle and velocity increments (every increment it receives), starts it
 with the master's attitude (so the slave's initial attitude error is the unknown mounting,
 seed 001: roll 1 deg, pitch 1 deg, heading 30 deg, plus the deck flexure), and corrects it
@@ -71,7 +75,13 @@ master axes, ``C_s_b = C_b_n^T C_s_n``, which is the mounting plus the current f
 ``rpy_err = euler(C_b_n^T C^_s_n) - euler(C_b_n^T C_s_n)`` [arcmin], Z-Y-X angles of the
 relative attitude: roll, pitch, heading of the slave relative to the master. Its 1-sigma
 ``rpy_sigma`` maps ``P_phi`` through ``C_n_b`` and the inverse Euler-rate matrix of the
-relative attitude. The rigid mounting estimate is the relative attitude minus the flexure
+relative attitude, both from the **truth** input ``rpy_m_true`` (left unconnected, that
+input is zero and ``rpy_sigma`` is then the sigma of the slave's absolute roll, pitch, yaw
+in NED). Without truth use ``rel_rpy_sigma``: the same mapping from the master's reported
+attitude, the 1-sigma of ``rel_rpy``; ``mount``, ``mount_sigma`` are the rigid mounting
+(relative attitude without the flexure estimate, master axes) and its 1-sigma
+(:func:`cosim.alignment.transfer_matching.estimates`; these four are refreshed once per
+filter period). The rigid mounting estimate is the relative attitude minus the flexure
 estimate ``flex`` (master axes, with its own sigma). In stage 1 the outputs are those of
 the most probable hypothesis (``nis`` too: its own UKF's innovation). Also: ``rel_rpy``
 (the estimated relative attitude, from the master's reported attitude), bias and drift
@@ -111,6 +121,12 @@ from numpy.typing import NDArray
 
 from cosim.alignment.nav import euler_rate_matrix_inv, nav_rates
 from cosim.alignment.transfer_filter import StageSettings, TransferFilter
+from cosim.alignment.transfer_matching import (
+    MATCHING_MODES,
+    MAX_HEADING_PRIOR,
+    MatchingFilter,
+    estimates,
+)
 from cosim.alignment.transfer_model import (
     StateLayout,
     TransferConfigError,
@@ -146,7 +162,7 @@ _PTR = ctypes.c_void_p
 
 # ----------------------------------------------------------------------------- the block
 class TransferAlignment(Block):
-    """Shipboard transfer alignment by velocity matching: slave strapdown + 19-state scaled UKF."""
+    """Transfer alignment by velocity and/or attitude matching: slave strapdown + scaled UKF."""
 
     variables = (
         parameter("r0", (10.0, 10.0, 5.0), "m", "nominal lever arm master -> slave, master axes"),
@@ -181,6 +197,12 @@ class TransferAlignment(Block):
         parameter("ukf_alpha", 0.1, "1", "UKF sigma-point spread alpha"),
         parameter("ukf_beta", 2.0, "1", "UKF beta (2: Gaussian prior)"),
         parameter("ukf_kappa", 0.0, "1", "UKF kappa"),
+        parameter("matching", 0, description="0 velocity, 1 attitude, 2 velocity+attitude"),
+        parameter("estimate_lag", 0, description="1: estimate the master's data lag (a state)"),
+        parameter("r_att", 1.0 * ARCMIN, "rad", "R: attitude-matching noise sigma per axis"),
+        parameter("p0_lag", 0.05, "s", "P0: lag sigma (estimate_lag = 1)"),
+        parameter("mount_rpy", _ZERO3, "rad", "nominal mounting C_nom (slave to master axes)"),
+        parameter("master_period", 0.0, "s", "master data interval (0: every step)"),
         input_("dtheta_s", _ZERO3, "rad", "slave angle increment over the step, slave axes"),
         input_("dv_s", _ZERO3, "m/s", "slave velocity increment over the step, slave axes"),
         input_("v_master_n", _ZERO3, "m/s", "master velocity, NED"),
@@ -190,7 +212,7 @@ class TransferAlignment(Block):
         input_("rpy_s_true", _ZERO3, "rad", "truth: slave attitude (LeverArm.rpy_s)"),
         input_("rpy_m_true", _ZERO3, "rad", "truth: master attitude (ShipMotion.rpy)"),
         output("rpy_err", _ZERO3, "arcmin", "relative attitude error: roll, pitch, heading"),
-        output("rpy_sigma", _ZERO3, "arcmin", "1-sigma of rpy_err from P"),
+        output("rpy_sigma", _ZERO3, "arcmin", "1-sigma of rpy_err (via rpy_m_true: truth)"),
         output("rel_rpy", _ZERO3, "rad", "estimated slave attitude in master axes (misalignment)"),
         output("flex", _ZERO3, "arcmin", "estimated flexure angle, master axes"),
         output("flex_sigma", _ZERO3, "arcmin", "1-sigma of flex"),
@@ -199,8 +221,14 @@ class TransferAlignment(Block):
         output("gyro_drift", _ZERO3, "rad/s", "estimated gyro drift, slave axes"),
         output("gyro_drift_sigma", _ZERO3, "rad/s", "1-sigma of gyro_drift"),
         output("nees", 0.0, "1", "NEES of the attitude error (chi-square, 3 dof)"),
-        output("nis", 0.0, "1", "NIS of the last velocity update (chi-square, 3 dof)"),
+        output("nis", 0.0, "1", "NIS of the last update (chi-square, nis_dof dof)"),
         output("stage", 0.0, "1", "0 waiting for the master, 1 acquisition, 2 fine alignment"),
+        output("nis_dof", 3.0, "1", "degrees of freedom of nis: the measurement dimension"),
+        output("rel_rpy_sigma", _ZERO3, "arcmin", "1-sigma of rel_rpy (master axes, per period)"),
+        output("mount", _ZERO3, "rad", "estimated rigid mounting C_s_d: rel_rpy minus flexure"),
+        output("mount_sigma", _ZERO3, "arcmin", "1-sigma of mount (per period)"),
+        output("lag", 0.0, "s", "estimated lag of the master's data (estimate_lag = 1)"),
+        output("lag_sigma", 0.0, "s", "1-sigma of lag"),
     )
     default_step = 0.02
     default_stop = 10.0
@@ -238,7 +266,39 @@ class TransferAlignment(Block):
             flex_sigma=tuple(float(v) for v in self.flexure_sigma),
         )
 
+    @property
+    def extended(self) -> bool:
+        """True when the block runs the numpy path of :mod:`cosim.alignment.transfer_matching`
+        or samples the master every ``master_period`` (attitude matching, lag or a slower
+        master): the compiled kernels cover velocity matching on every step only."""
+        return bool(self.matching != 0 or self.estimate_lag or self.master_period > 0.0)
+
     def _check(self) -> None:
+        if self.matching not in MATCHING_MODES:
+            raise TransferConfigError(
+                f"TransferAlignment.matching must be 0 (velocity), 1 (attitude) or 2 "
+                f"(velocity+attitude), got {self.matching}"
+            )
+        if self.estimate_lag not in (0, 1):
+            raise TransferConfigError(
+                f"TransferAlignment.estimate_lag must be 0 or 1, got {self.estimate_lag}"
+            )
+        for name in ("r_att", "p0_lag"):
+            if not getattr(self, name) > 0.0:
+                raise TransferConfigError(
+                    f"TransferAlignment.{name} must be > 0, got {getattr(self, name)}"
+                )
+        if self.master_period < 0.0:
+            raise TransferConfigError(
+                f"TransferAlignment.master_period must be >= 0 s, got {self.master_period}"
+            )
+        if (self.matching or self.estimate_lag) and self.p0_heading > MAX_HEADING_PRIOR:
+            raise TransferConfigError(
+                f"TransferAlignment.p0_heading ({self.p0_heading / DEG:.3g} deg) must be at most "
+                f"{MAX_HEADING_PRIOR / DEG:.0f} deg with matching = {self.matching} or "
+                "estimate_lag = 1 (no acquisition bank runs): give mount_rpy within a few "
+                "degrees of the mounting, or use matching = 0 without the lag"
+            )
         if self.flexure_states not in (0, 1):
             raise TransferConfigError(
                 f"TransferAlignment.flexure_states must be 0 or 1, got {self.flexure_states}"
@@ -299,9 +359,31 @@ class TransferAlignment(Block):
             ukf_beta=float(self.ukf_beta),
             ukf_kappa=float(self.ukf_kappa),
         )
-        self._filter = TransferFilter(
-            self._layout, self.tuning(), self.r0, settings, float(self.lat_master)
+        self._c_nom = (
+            None
+            if not np.any(np.asarray(self.mount_rpy))
+            else euler_to_dcm(np.asarray(self.mount_rpy, dtype=float))
         )
+        if self.matching or self.estimate_lag:
+            self._filter: TransferFilter = MatchingFilter(
+                self._layout,
+                self.tuning(),
+                self.r0,
+                settings,
+                float(self.lat_master),
+                matching=int(self.matching),
+                estimate_lag=bool(self.estimate_lag),
+                r_att=float(self.r_att),
+                p0_lag=float(self.p0_lag),
+                c_nom=np.eye(3) if self._c_nom is None else self._c_nom,
+            )
+        else:
+            self._filter = TransferFilter(
+                self._layout, self.tuning(), self.r0, settings, float(self.lat_master)
+            )
+            self._filter.c_nom = self._c_nom
+        self._km = 1
+        self._extras_P: FloatArray | None = None
         # the master attitudes, newest first: views of a ring of HISTORY matrices (the
         # oldest one's storage takes the newest)
         self._ring = np.zeros((HISTORY, 3, 3))
@@ -355,8 +437,11 @@ class TransferAlignment(Block):
             self._earth_ptr = native.pointer(self._earth)
             self._ms_out = np.zeros(12)
             self._ms_ptr = native.pointer(self._ms_out)
+        if self.extended:  # the numpy path (module docstring of transfer_matching)
+            self._native_publish = self._native_period = self._native_master = None
         self.nis = 0.0
         self.stage = 0.0
+        self.nis_dof = float(getattr(self._filter, "dim_z", 3))
         self._publish()
 
     def _check_step(self, h: float) -> None:
@@ -368,6 +453,21 @@ class TransferAlignment(Block):
                     f"steps; the block steps by {h} s (run it at rate 1, every macro step)"
                 )
             self._h, self._k = h, k
+            if isinstance(self._filter, MatchingFilter):
+                self._filter.set_accel_steps(k)
+            if self.master_period > 0.0:
+                km = int(round(self.master_period / h))
+                if km < 1 or abs(km * h - self.master_period) > 1e-9 * self.master_period:
+                    raise TransferRuntimeError(
+                        f"TransferAlignment.master_period ({self.master_period} s) must be a "
+                        f"whole number of steps ({h} s)"
+                    )
+                if k % km:
+                    raise TransferRuntimeError(
+                        f"TransferAlignment.period ({self.period} s) must be a whole number "
+                        f"of master_period ({self.master_period} s)"
+                    )
+                self._km = km
         elif abs(h - self._h) > 1e-9 * self._h:
             raise TransferRuntimeError(
                 f"TransferAlignment needs a constant step; got {h} s after {self._h} s"
@@ -410,7 +510,7 @@ class TransferAlignment(Block):
         c = self._hist[0].copy()
         v_m = np.asarray(self.v_master_n, dtype=float)
         _, w_en = nav_rates(v_m, float(self.lat_master), float(self.h_master))
-        w_eb = master_rate(list(self._hist), self._h) + c.T @ w_en
+        w_eb = master_rate(list(self._hist), self._h * self._km) + c.T @ w_en
         return c, w_eb, v_m
 
     # ------------------------------------------------------------------ stepping
@@ -418,6 +518,9 @@ class TransferAlignment(Block):
         self._check_step(h)
         self._n += 1
         f = self._filter
+        if self.extended:
+            self._step_numpy(h)
+            return
         c_m = self._ring[self._n % HISTORY]
         self._hist.appendleft(c_m)
         # the step's master attitude; the compiled publish computes it too (the same
@@ -431,6 +534,23 @@ class TransferAlignment(Block):
             f.step(np.asarray(self.dtheta_s, dtype=float), np.asarray(self.dv_s, dtype=float), h)
             if self._n % self._k == 0:
                 f.update(self._n * self._h, *self._master_state())
+                self.nis = f.nis
+        self.stage = f.stage
+        self._publish()
+
+    def _step_numpy(self, h: float) -> None:
+        """:meth:`step` of the numpy path: the master is sampled every ``master_period``."""
+        f = self._filter
+        fresh = self._n % self._km == 0
+        if fresh:
+            self._hist.appendleft(euler_to_dcm_3(self.rpy_master).copy())
+        if f.nav is None:
+            if fresh and len(self._hist) == self._hist.maxlen:
+                f.start(*self.master_state_numpy(), float(self.lat_master), float(self.h_master))
+        else:
+            f.step(np.asarray(self.dtheta_s, dtype=float), np.asarray(self.dv_s, dtype=float), h)
+            if self._n % self._k == 0:
+                f.update(self._n * self._h, *self.master_state_numpy())
                 self.nis = f.nis
         self.stage = f.stage
         self._publish()
@@ -517,6 +637,8 @@ class TransferAlignment(Block):
         if self._att_T is None and f.nav is not None and f.stage == 1.0:
             self._att_T = self._per[0:9].reshape(3, 3)
             self._att_T[...] = euler_to_dcm_3(f.x_show[self._layout.att]).T
+        if f.P_show is not self._extras_P:
+            self._publish_estimates()
         io = self._io
         if self._native_publish is not None:
             if f.nav is None:
@@ -540,6 +662,26 @@ class TransferAlignment(Block):
             out[...] = values
         else:
             self.rpy_err, self.rpy_sigma, self.rel_rpy = values[0:3], values[3:6], values[6:9]
+
+    def _publish_estimates(self) -> None:
+        """The outputs that need no truth: ``rel_rpy_sigma``, ``mount``, ``mount_sigma``,
+        ``lag``, ``lag_sigma`` (:func:`cosim.alignment.transfer_matching.estimates`)."""
+        f = self._filter
+        self._extras_P = f.P_show
+        if f.nav is None:
+            c_est = self._hist[0] if self._c_nom is None else self._hist[0] @ self._c_nom
+        else:
+            c_est = f.nav.C_s_n if f.stage != 1.0 else self._att_T @ f.nav.C_s_n
+        rel_sigma, mount, mount_sigma = estimates(
+            c_est, self._hist[0], f.x_show, f.P_show, self._layout
+        )
+        self.rel_rpy_sigma[:] = rel_sigma
+        self.mount[:] = mount
+        self.mount_sigma[:] = mount_sigma
+        tau = getattr(f, "tau", None)
+        if tau is not None:
+            self.lag = float(f.x_show[tau])
+            self.lag_sigma = float(np.sqrt(max(f.P_show[tau, tau], 0.0)))
 
     def attitude_numpy(self) -> tuple[FloatArray, float]:
         """The per-step outputs in numpy (the statement of ``transfer_publish``).

@@ -118,6 +118,9 @@ class TransferFilter:
         self._r0 = np.asarray(r0, dtype=float).copy()
         self._R0 = r0_matrix(self._r0)
         self.nav: Strapdown | None = None
+        #: Nominal mounting ``C_nom`` (slave to master axes): the mechanisation starts on
+        #: ``C_b_n C_nom``; None starts it on the master's attitude (no product).
+        self.c_nom: FloatArray | None = None
         self._sums = PeriodSums()
         self._ukf: UnscentedKalmanFilter | None = None
         self._bank: UnscentedParticleFilter | None = None
@@ -206,7 +209,8 @@ class TransferFilter:
         """
         lay = self.layout
         v_lr = c_b_n @ cross(w_eb_b, self._r0)
-        self.nav = make_strapdown(c_b_n, lat, height, v_m + v_lr, options=MOVING_BASE)
+        c_start = c_b_n if self.c_nom is None else c_b_n @ self.c_nom
+        self.nav = make_strapdown(c_start, lat, height, v_m + v_lr, options=MOVING_BASE)
         self._compiled = isinstance(self.nav, CompiledStrapdown)
         self._sums = PeriodSums(lat=lat, height=self.nav.height)
         m0 = flexure_matrix(c_b_n, w_eb_b, self._R0) if lay.flexure else None
