@@ -39,10 +39,10 @@ import math
 
 import numpy as np
 
-from models.block import STEP_RTOL, Block, parameter, same_step
-from models.constants import DEG
-from models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
-from models.step_paths import simpson_nodes, substeps
+from .block import STEP_RTOL, Block, parameter, same_step
+from .constants import DEG
+from .earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
+from .step_paths import simpson_nodes, substeps
 
 
 class LandVehicle(Block):

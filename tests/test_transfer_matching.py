@@ -17,8 +17,8 @@ from cosim.alignment.transfer import TransferAlignment
 from cosim.alignment.transfer_filter import StageSettings
 from cosim.alignment.transfer_matching import MatchingFilter
 from cosim.alignment.transfer_model import StateLayout, TransferConfigError, TransferTuning
-from models.constants import ARCMIN, DEG
-from models.conventions import dcm_to_euler, euler_to_dcm, rotvec_to_dcm
+from cosim.models.constants import ARCMIN, DEG
+from cosim.models.conventions import dcm_to_euler, euler_to_dcm, rotvec_to_dcm
 
 LAT = 34.2 * DEG
 C_B_N = euler_to_dcm(np.array([0.1, -0.05, 1.0]))

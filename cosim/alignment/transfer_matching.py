@@ -85,8 +85,8 @@ from cosim.estimation import (
     angle_mean_fn,
     angle_residual_fn,
 )
-from models.constants import ARCMIN, DEG
-from models.conventions import (
+from cosim.models.constants import ARCMIN, DEG
+from cosim.models.conventions import (
     cross,
     dcm_to_euler,
     dcm_to_rotvec,
