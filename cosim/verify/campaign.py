@@ -33,6 +33,7 @@ import numpy as np
 
 from cosim.errors import ScenarioError
 from cosim.scenario import Scenario, build_master, load_scenario
+from cosim.sensors.pairing import check_log_pairs
 from cosim.verify.lock import holding_report_folder
 from cosim.verify.pool import WorkerPool, keeps_workers
 from cosim.verify.records import RunRecord, read_records, save_record, write_metrics_table
@@ -368,6 +369,7 @@ def prepare(
     try:
         master.warn_loops()  # once here; the workers run silently
         checked = check_tables(sc, settings, master, requirements=requirements)
+        check_log_pairs(sc, master)  # two logs in one run (cosim.sensors.pairing)
     finally:
         master.terminate()
     return Prepared(
