@@ -99,7 +99,9 @@ def cli(*args: str) -> subprocess.CompletedProcess:
 def log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from cosim.sensors.demo import write_demo_log
 
-    return write_demo_log(tmp_path_factory.mktemp("log") / "static_imu.csv", stop="120 s")
+    # 300 s, as scenarios/real_sensor_no_truth.toml needs; the test scenario stops at 120 s
+    folder = tmp_path_factory.mktemp("log")
+    return write_demo_log(folder / "out" / "real_sensor" / "static_imu.csv")
 
 
 @pytest.fixture(scope="module")
@@ -225,3 +227,13 @@ def test_the_reference_error_wraps_angles_and_checks_its_keys() -> None:
         list(UNITS),
     )
     assert v.reference is not None and v.reference.value == 2.0 and v.wrap is False
+
+
+def test_the_shipped_scenario_checks(log: Path) -> None:
+    shipped = ROOT / "scenarios" / "real_sensor_no_truth.toml"
+    folder = log.parents[2]  # holds out/real_sensor/static_imu.csv, the scenario's path
+    proc = subprocess.run(
+        [INS_COSIM, "check", str(shipped)], capture_output=True, text=True, cwd=folder
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "2 requirement(s)" in proc.stdout and "warning" not in proc.stderr

@@ -22,39 +22,12 @@ import pytest
 
 import cosim
 from cosim.errors import ScenarioError
-from cosim.sensors.logs import write_csv
+from cosim.sensors.demo import transfer_run, write_transfer_logs
 from cosim.sensors.pairing import LogSpan, check_pair, check_rate
 
 ROOT = Path(__file__).resolve().parent.parent
 TRANSFER = ROOT / "scenarios" / "transfer_alignment.toml"
 STOP = "20 s"
-MASTER_HEADER = (
-    "time [s],v_n [m/s],v_e [m/s],v_d [m/s],roll [rad],pitch [rad],yaw [rad],lat [rad],"
-    "lon [rad],h [m]"
-)
-
-
-def _vec(result: cosim.RunResult, name: str, n: int = 3) -> np.ndarray:
-    return np.column_stack([result[f"{name}[{i}]"] for i in range(1, n + 1)])
-
-
-def write_logs(sim: cosim.RunResult, folder: Path, master_delay: float) -> tuple[Path, Path]:
-    """The slave-IMU log (increments) and the master-INS log (states), stamps on one clock
-    except the master's, ``master_delay`` [s] late."""
-    imu = write_csv(
-        folder / "slave_imu.csv",
-        sim.time[1:],
-        _vec(sim, "imu.dtheta_meas_b")[1:],
-        _vec(sim, "imu.dv_meas_b")[1:],
-    )
-    cols = [sim.time + master_delay, _vec(sim, "master.v_master_n"), _vec(sim, "master.rpy_master")]
-    cols += [sim["master.lat_master"], sim["master.lon_master"], sim["master.h_master"]]
-    master = folder / "master_ins.csv"
-    with master.open("w") as fh:
-        fh.write(MASTER_HEADER + "\n")
-        for row in np.column_stack(cols).tolist():
-            fh.write(",".join(map(repr, row)) + "\n")
-    return imu, master
 
 
 def replay_scenario(folder: Path, imu: Path, master: Path, offset: str | None) -> Path:
@@ -94,11 +67,9 @@ def cli(*args: str) -> subprocess.CompletedProcess:
 
 @pytest.fixture(scope="module")
 def simulated(tmp_path_factory: pytest.TempPathFactory) -> tuple[cosim.RunResult, Path, Path]:
-    sc = cosim.load_scenario(TRANSFER)
-    sc.outputs = ["align", "imu.dtheta_meas_b", "imu.dv_meas_b", "master"]
-    sim = cosim.run(sc, record_every=1, stop=STOP)
-    folder = tmp_path_factory.mktemp("logs")
-    imu, master = write_logs(sim, folder, master_delay=0.110)
+    """The simulated run and its two logs, the master's stamped 110 ms late."""
+    sim = transfer_run(STOP)
+    imu, master = write_transfer_logs(tmp_path_factory.mktemp("logs"), sim, master_delay=0.110)
     return sim, imu, master
 
 
@@ -168,3 +139,30 @@ def test_a_step_that_splits_a_sample_and_a_short_log_are_refused() -> None:
     assert exc.value.key == "master.step"
     with pytest.raises(ScenarioError, match=r"holds 10 s of data .* master\.stop <= 10 s"):
         check_rate(master, 0.1, 1, 12.0, 0.0)
+
+
+def test_the_shipped_scenario_refuses_logs_shorter_than_its_run(
+    simulated: tuple[cosim.RunResult, Path, Path], tmp_path: Path
+) -> None:
+    """scenarios/transfer_alignment_logs.toml (100 s) on the 20 s logs, from a folder
+    holding them where the scenario looks (out/transfer_logs/)."""
+    import shutil
+
+    _, imu, master = simulated
+    logs = tmp_path / "out" / "transfer_logs"
+    logs.mkdir(parents=True)
+    shutil.copy(imu, logs / "slave_imu.csv")
+    shutil.copy(master, logs / "master_ins.csv")
+    shipped = ROOT / "scenarios" / "transfer_alignment_logs.toml"
+    proc = subprocess.run(
+        [str(Path(sys.executable).parent / "ins-cosim"), "check", str(shipped)],
+        capture_output=True,
+        text=True,
+        cwd=tmp_path,
+    )
+    assert proc.returncode == 3
+    (line,) = proc.stderr.strip().splitlines()
+    # the IMU log is checked first: 400 increments at 20 Hz hold 20 s of data
+    assert "key 'master.stop'" in line
+    assert "the run lasts 100 s, but the log out/transfer_logs/slave_imu.csv" in line
+    assert "holds 20 s of data (400 samples at 20 Hz); set master.stop <= 20 s" in line

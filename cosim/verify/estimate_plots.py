@@ -175,7 +175,8 @@ def estimate_figure(
         values = values[np.isfinite(values)]
         lo, hi = float(values.min()), float(values.max())
         pad = 0.08 * (hi - lo) if hi > lo else max(abs(hi), 1.0) * 0.1
-        axw.set_xlim(t[inside][0], t[inside][-1])
+        span = t[inside][-1] - t[inside][0]
+        axw.set_xlim(t[inside][0] - 0.02 * span, t[inside][-1] + 0.02 * span)
         axw.set_ylim(lo - pad, hi + pad)
     for ax in (ax1, axw):
         ylim = ax.get_ylim() if ax is axw else None
