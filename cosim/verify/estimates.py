@@ -30,8 +30,9 @@ of requirement need no truth:
 Which inputs are truth: by the project's naming rule, a filter's inputs whose names end
 in ``_true`` (``rpy_true``, ``rpy_s_true``, ``azimuth_true``) feed only its error outputs,
 whose names end in ``_err``, and its ``nees``. :func:`check_truth` refuses a requirement
-on such an output while any truth input of its block is left unconnected (``check`` and
-``verify`` stop with the requirement, the inputs and the fix, exit code 3).
+on an error output while any truth input of its block is left unconnected (``check`` and
+``verify`` stop with the requirement, the inputs and the fix, exit code 3). The NEES is
+left to the consistency verdicts, which judge it only when the truth is connected.
 """
 
 from __future__ import annotations
@@ -47,8 +48,6 @@ from cosim.units import conversion_factor, to_unit
 #: Suffix of a truth input's name, and of an output that is estimate minus truth.
 TRUTH_SUFFIX = "_true"
 ERROR_SUFFIX = "_err"
-#: Outputs computed from the truth besides the ``*_err`` ones.
-TRUTH_OUTPUTS = ("nees",)
 
 
 @dataclass(frozen=True)
@@ -132,7 +131,7 @@ def parse_reference(table: Mapping[str, Any], unit: str, err: Any) -> Reference 
 
 
 def truth_outputs(block: str, host: Any) -> list[str]:
-    """The outputs of a block computed from its truth inputs (``*_err``, ``nees``).
+    """The error outputs of a block, estimate minus its truth inputs (``*_err``).
 
     Parameters
     ----------
@@ -149,7 +148,7 @@ def truth_outputs(block: str, host: Any) -> list[str]:
     out = []
     for v in host.by_causality("output"):
         base = v.name.split("[", 1)[0]
-        if base.endswith(ERROR_SUFFIX) or base in TRUTH_OUTPUTS:
+        if base.endswith(ERROR_SUFFIX):
             out.append(f"{block}.{v.name}")
     return out
 
@@ -180,7 +179,7 @@ def check_truth(
     """
     for req in requirements:
         for key in ("signal", "minus", "sigma"):
-            column = getattr(req, key)
+            column = getattr(req, key, None)
             if not column:
                 continue
             block, _, name = column.partition(".")
