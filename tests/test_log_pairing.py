@@ -78,7 +78,12 @@ def test_a_log_110_ms_out_of_step_is_refused_with_the_numbers(
 ) -> None:
     _, imu, master = simulated
     scenario = replay_scenario(tmp_path, imu, master, offset=None)
-    for command in (["check", str(scenario)], ["run", str(scenario), "--out", str(tmp_path / "o")]):
+    commands = (
+        ["check", str(scenario)],
+        ["run", str(scenario), "--out", str(tmp_path / "o")],
+        ["verify", str(scenario), "--report", str(tmp_path / "v"), "--no-progress"],
+    )
+    for command in commands:
         proc = cli(*command)
         assert proc.returncode == 3, proc.stderr
         lines = [ln for ln in proc.stderr.splitlines() if ln.startswith("error:")]
@@ -91,6 +96,7 @@ def test_a_log_110_ms_out_of_step_is_refused_with_the_numbers(
         assert 'time_offset = "110 ms"' in msg
         assert "blocks.master.parameters.time_offset" in msg
     assert not (tmp_path / "o" / "results.csv").exists()
+    assert not (tmp_path / "v" / "report.json").exists()
 
 
 def test_with_the_right_time_offset_the_replay_equals_the_simulation(

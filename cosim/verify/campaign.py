@@ -368,8 +368,8 @@ def prepare(
     master = build_master(probe, fmu_dir=fmu)
     try:
         master.warn_loops()  # once here; the workers run silently
-        checked = check_tables(sc, settings, master, requirements=requirements)
         check_log_pairs(sc, master)  # two logs in one run (cosim.sensors.pairing)
+        checked = check_tables(sc, settings, master, requirements=requirements)
     finally:
         master.terminate()
     return Prepared(
