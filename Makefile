@@ -66,5 +66,12 @@ format: $(STAMP)
 	$(VENV)/bin/ruff format cosim models tests benchmarks
 	$(VENV)/bin/ruff check --fix cosim models tests benchmarks
 
+# The generated pages: models/docs/<Model>.md and docs/filters/<Filter>.md, from the blocks'
+# own docstrings and declarations (run after changing a model's or a filter's parameters).
+.PHONY: docs
+docs: $(STAMP)
+	$(PY) -m cosim.interop.modeldocs
+	$(PY) -m cosim.interop.filterdocs
+
 clean:
 	rm -rf $(FMUDIR) out .pytest_cache

@@ -38,11 +38,14 @@ def _echo_sources(scenario) -> None:  # noqa: ANN001  (a cosim.scenario.Scenario
 
 
 def _check_roles(scenario, master) -> None:  # noqa: ANN001  (Scenario, Master)
-    """Refuse required role inputs left unconnected (terminates the master when it does)."""
+    """Refuse required role inputs left unconnected and log replays out of step with each
+    other (cosim.sensors.pairing); terminates the master when it does."""
     from cosim.interop.interfaces import check_role_inputs
+    from cosim.sensors.pairing import check_log_pairs
 
     try:
         check_role_inputs(scenario, master.system, master.metadata.get("unconnected", {}))
+        check_log_pairs(scenario, master)
     except BaseException:
         master.terminate()
         raise

@@ -43,9 +43,11 @@ class MasterInsLogReplay(LogReplay):
     )
     default_step = 0.01
     default_stop = 1.0
+    layout = "MASTER_INS"
+    covers_interval = False
 
     def initialize(self) -> None:
-        self.open_log("MASTER_INS")
+        self.open_log(self.layout)
         values, self.log_time = self.take(1, self.start_time, 0.0)
         self._publish(values[0])
 

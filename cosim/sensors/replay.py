@@ -72,15 +72,29 @@ REPLAY_PARAMETERS = (
     parameter("jitter", 0.05, "1", "tolerance on timestamps off the grid, in intervals"),
     parameter("drop_duplicates", False, description="drop rows repeating the previous row"),
     parameter("chunk_rows", 65536, description="read buffer [rows]"),
+    parameter(
+        "time_offset",
+        0.0,
+        "s",
+        "this log's time stamps minus the run's common time (a clock offset between two logs); "
+        "checked against the other log of the run, the samples are replayed as they are",
+    ),
 )
 
 
 class LogReplay(Block):
     """Common part of the log replays: the ``log`` parameter, the read buffer, the step check.
 
-    A subclass declares its variables (starting with :data:`REPLAY_PARAMETERS`), calls
-    :meth:`open_log` in :meth:`initialize` and takes its samples with :meth:`take`.
+    A subclass declares its variables (starting with :data:`REPLAY_PARAMETERS`), its
+    :attr:`layout` and :attr:`covers_interval`, calls :meth:`open_log` in
+    :meth:`initialize` and takes its samples with :meth:`take`.
     """
+
+    #: Name of the :mod:`cosim.sensors.logs` layout the log has.
+    layout = ""
+    #: True when a sample is a quantity over the interval ending at its time stamp
+    #: (increments), False when it is a state at its time stamp.
+    covers_interval = False
 
     def __init__(self, **kwargs: object) -> None:
         super().__init__(**kwargs)
@@ -233,6 +247,12 @@ class LogReplay(Block):
 class ImuLogReplay(LogReplay):
     """Replay of a recorded IMU log: measured increments per macro step (role ``imu``)."""
 
+    #: The log's layout (:mod:`cosim.sensors.logs`); a sample is an increment over the
+    #: interval ending at its time, so the log's data start one interval before its first
+    #: time stamp (:mod:`cosim.sensors.pairing`).
+    layout = "IMU"
+    covers_interval = True
+
     variables = (
         *REPLAY_PARAMETERS,
         input_("dtheta_b", (0.0, 0.0, 0.0), "rad", "true angle increment (ignored: role input)"),
@@ -260,7 +280,7 @@ class ImuLogReplay(LogReplay):
                 rate if rate > 0.0 else stated, samples, _npy_chunks(folder, rows), "the FMU's log"
             )
         else:
-            self.open_log("IMU")
+            self.open_log(self.layout)
         for name in ("dtheta_meas_b", "dv_meas_b", "omega_meas_b", "f_meas_b"):
             setattr(self, name, np.zeros(3))
         self.log_time = 0.0

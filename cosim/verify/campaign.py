@@ -33,6 +33,7 @@ import numpy as np
 
 from cosim.errors import ScenarioError
 from cosim.scenario import Scenario, build_master, load_scenario
+from cosim.sensors.pairing import check_log_pairs
 from cosim.verify.lock import holding_report_folder
 from cosim.verify.pool import WorkerPool, keeps_workers
 from cosim.verify.records import RunRecord, read_records, save_record, write_metrics_table
@@ -367,6 +368,7 @@ def prepare(
     master = build_master(probe, fmu_dir=fmu)
     try:
         master.warn_loops()  # once here; the workers run silently
+        check_log_pairs(sc, master)  # two logs in one run (cosim.sensors.pairing)
         checked = check_tables(sc, settings, master, requirements=requirements)
     finally:
         master.terminate()

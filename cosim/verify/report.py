@@ -34,6 +34,7 @@ import numpy as np  # noqa: E402
 
 from cosim.verify.budget import budget_html, budget_section  # noqa: E402
 from cosim.verify.campaign import Campaign  # noqa: E402
+from cosim.verify.estimate_plots import estimate_figure  # noqa: E402
 from cosim.verify.records import write_atomic  # noqa: E402
 from cosim.verify.requirements import (  # noqa: E402
     SATISFIED,
@@ -408,6 +409,8 @@ def build_requirement_figure(campaign: Campaign, req: Requirement, verdict: Verd
     matplotlib.figure.Figure
         Axes labelled ``"error"``, ``"window"``, ``"envelope"``, ``"histogram"``.
     """
+    if req.reference is not None:  # an estimate, drawn with its +/-3 sigma band
+        return estimate_figure(campaign, req, verdict, _histogram)
     k = campaign.requirements.index(req)
     t, e, s = _histories(campaign, k)
     master = campaign.provenance["master"]
@@ -615,6 +618,7 @@ def write_html(campaign: Campaign, path: Path, data: dict[str, Any] | None = Non
 
     for req, v in zip(campaign.requirements, campaign.verdicts, strict=True):
         signal = req.signal + (f" − {req.minus}" if req.minus else "")
+        signal += f" − reference {req.reference.text}" if req.reference else ""
         interval = ""
         if v.interval is not None and f"{v.interval[0]:.4g} " not in v.reason:
             lo, hi = v.interval

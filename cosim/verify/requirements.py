@@ -37,6 +37,7 @@ import numpy as np
 from cosim.errors import ScenarioError, UnitError
 from cosim.results import RunResult
 from cosim.units import conversion_factor, parse_unit, to_unit
+from cosim.verify.estimates import Reference, parse_reference
 
 SATISFIED = "satisfied"
 VIOLATED = "violated"
@@ -51,6 +52,7 @@ REQUIREMENT_KEYS = {
     "text",
     "signal",
     "minus",
+    "reference",
     "sigma",
     "unit",
     "wrap",
@@ -96,6 +98,8 @@ class Requirement:
         Recorded column (``"sensor.m"``, ``"filter.att_error[3]"``).
     minus : str or None
         Column subtracted from ``signal`` (a truth signal), or None.
+    reference : Reference or None
+        Value subtracted from ``signal`` (:mod:`cosim.verify.estimates`), or None.
     sigma : str or None
         Column holding the filter's 1-sigma of the error (for the +/-3 sigma plot), or None.
     unit : str
@@ -161,6 +165,7 @@ class Requirement:
     on_failure: str = "undecided"
     factors: tuple[float, float, float] = (1.0, 1.0, 1.0)
     index: int = 0
+    reference: Reference | None = None
 
     @property
     def metric_unit(self) -> str:
@@ -203,6 +208,7 @@ class Requirement:
             "text": self.text,
             "signal": self.signal,
             "minus": self.minus,
+            "reference": None if self.reference is None else self.reference.to_dict(),
             "sigma": self.sigma,
             "unit": self.unit,
             "criterion": self.criterion,
@@ -458,7 +464,8 @@ def _parse_one(
             ) from exc
 
     factors = (factor(signal, "signal"), factor(minus, "minus"), factor(sigma, "sigma"))
-    wrap = _bool(table, "wrap", False, err)
+    reference = parse_reference(table, unit, err)
+    wrap = _bool(table, "wrap", reference is not None and reference.angle, err)
     if wrap:
         try:
             conversion_factor(unit, "rad")
@@ -568,6 +575,7 @@ def _parse_one(
         on_failure=on_failure,
         factors=factors,
         index=i,
+        reference=reference,
     )
 
 
@@ -648,46 +656,6 @@ def _fraction(table: dict[str, Any], key: str, err) -> float:  # noqa: ANN001
 
 
 # --------------------------------------------------------------------------- one run
-def check_windows(
-    requirements: Sequence[Requirement], start: float, stop: float, file: str
-) -> None:
-    """Refuse a requirement whose time window lies outside the run, before anything runs.
-
-    Parameters
-    ----------
-    requirements : sequence of Requirement
-        As returned by :func:`load_requirements`.
-    start, stop : float
-        The run's start and stop times [s] (``master.start``, ``master.stop``).
-    file : str
-        The scenario file (for the message).
-
-    Raises
-    ------
-    ScenarioError
-        A ``from`` or ``at`` after the stop time, or an ``until`` before the start time,
-        naming the requirement's key.
-    """
-    for req in requirements:
-        where = f"requirements[{req.index}]"
-        for key, t in (("from", req.start), ("at", req.at)):
-            if t is not None and t > stop:
-                raise ScenarioError(
-                    f"requirement '{req.id}': '{key}' = {t:g} s is after the stop time "
-                    f"({stop:g} s), so no run can be judged; move it into the run or "
-                    f"lengthen master.stop",
-                    file=file,
-                    key=f"{where}.{key}",
-                )
-        if req.until is not None and req.until < start:
-            raise ScenarioError(
-                f"requirement '{req.id}': 'until' = {req.until:g} s is before the start time "
-                f"({start:g} s)",
-                file=file,
-                key=f"{where}.until",
-            )
-
-
 def error_signal(
     req: Requirement, result: RunResult
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
@@ -705,7 +673,8 @@ def error_signal(
     t : ndarray, shape (n,)
         Recorded times [s].
     e : ndarray, shape (n,)
-        ``signal - minus`` [req.unit], wrapped to (-180 deg, 180 deg] if asked.
+        ``signal - minus`` or ``signal - reference`` [req.unit], wrapped to
+        (-180 deg, 180 deg] if asked.
     sigma : ndarray, shape (n,), or None
         The ``sigma`` column [req.unit], or None when the requirement has none.
     """
@@ -713,6 +682,8 @@ def error_signal(
     e = np.asarray(result.data[req.signal], dtype=float) * f_sig
     if req.minus is not None:
         e = e - np.asarray(result.data[req.minus], dtype=float) * f_minus
+    if req.reference is not None:
+        e = e - req.reference.value
     if req.wrap:
         half = math.pi * conversion_factor("rad", req.unit)
         e = half - np.mod(half - e, 2.0 * half)

@@ -14,8 +14,10 @@ from typing import Any
 
 from cosim.errors import ScenarioError
 from cosim.scenario import Scenario
-from cosim.verify.requirements import Requirement, check_windows, load_requirements
+from cosim.verify.estimates import check_truth
+from cosim.verify.requirements import Requirement, load_requirements
 from cosim.verify.seeds import Stratified
+from cosim.verify.windows import check_windows
 
 
 @dataclass(frozen=True)
@@ -121,6 +123,7 @@ def check_tables(
             units[f"{b}.{v}"] = getattr(var, "conversion_unit", var.unit)
         reqs = load_requirements(tables, units, file, outputs, on_failure=settings.on_failure)
         check_windows(reqs, master.settings.start, master.settings.stop, file)
+        check_truth(reqs, system, master.metadata.get("unconnected", {}), file)
     parameters = {b: dict(p) for b, p in system.parameters.items()}
     return CheckedTables(reqs, seeded, declared, stratified, parameters)
 
