@@ -10,8 +10,8 @@ from __future__ import annotations
 from pathlib import Path
 
 from cosim.interop import filterdocs
-from models.block import Block, input_, output, parameter
-from models.constants import ARCMIN, DEG, DEG_PER_HOUR
+from cosim.models.block import Block, input_, output, parameter
+from cosim.models.constants import ARCMIN, DEG, DEG_PER_HOUR
 
 
 def test_every_filter_page_is_up_to_date() -> None:

@@ -30,7 +30,7 @@ from pathlib import Path
 
 from cosim.interop.modeldocs import NOTES_MARKER, notes_of, rst_to_markdown
 from cosim.units import conversion_factor
-from models.block import Block, Var
+from cosim.models.block import Block, Var
 
 ROOT = Path(__file__).resolve().parents[2]
 DOCS_DIR = ROOT / "docs" / "filters"
