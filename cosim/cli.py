@@ -197,8 +197,14 @@ def run(
         sys.exit(exc.exit_code)
     except UserError as exc:
         _fail(exc)
+    from cosim.verify.consistency import check_run
+
+    consistency = check_run(result)
+    result.metadata["consistency"] = consistency.to_dict()
     csv, meta_file = result.save(out)
     click.echo(f"wrote {csv} ({len(result.data)} rows) and {meta_file}")
+    for line in consistency.lines():
+        click.echo(line)
     if plot:
         from cosim.verify.plots import plot_result
 

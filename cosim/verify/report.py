@@ -34,6 +34,7 @@ import numpy as np  # noqa: E402
 
 from cosim.verify.budget import budget_html, budget_section  # noqa: E402
 from cosim.verify.campaign import Campaign  # noqa: E402
+from cosim.verify.consistency_report import consistency_figure, consistency_html  # noqa: E402
 from cosim.verify.records import write_atomic  # noqa: E402
 from cosim.verify.requirements import (  # noqa: E402
     SATISFIED,
@@ -530,6 +531,8 @@ def requirement_figure(campaign: Campaign, req: Requirement, verdict: Verdict) -
     str
         Base64 of the PNG.
     """
+    if req.criterion == "consistent":
+        return consistency_figure(campaign, req, verdict)
     return _png(build_requirement_figure(campaign, req, verdict))
 
 
@@ -634,6 +637,7 @@ def write_html(campaign: Campaign, path: Path, data: dict[str, Any] | None = Non
             f'<figure><img alt="{_e(req.id)}: error vs time, Monte Carlo envelope and '
             f'histogram" src="data:image/png;base64,{requirement_figure(campaign, req, v)}">'
             "</figure>",
+            consistency_html(campaign, req),
             budget_html(data.get("budgets", {}).get(req.id)),
             "</section>",
         ]
