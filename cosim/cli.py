@@ -449,6 +449,10 @@ def verify(
     )
     for req, v in zip(campaign.requirements, campaign.verdicts, strict=True):
         click.echo(f"  {v.verdict.upper():<10} {req.id}: {v.reason}")
+    from cosim.verify.consistency_report import consistency_lines, consistency_section
+
+    for line in consistency_lines(consistency_section(campaign)):
+        click.echo(line)
     if "sequential" in campaign.execution:
         from cosim.verify.sequential import runs_taken
 

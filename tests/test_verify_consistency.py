@@ -86,6 +86,12 @@ def test_verify_flags_the_mistuned_filter_in_every_report(cli, tmp_path: Path) -
     assert 'class="consistency" data-id="NIS">3 run(s) flagged' in html
     junit = (tmp_path / "rep" / "junit.xml").read_text()
     assert "<failure" in junit and "sigma too small" in junit
+    # the automatic check of every NIS/NEES output, with or without a requirement
+    auto = data["consistency"]["signals"]["align.nis"]
+    assert auto["verdict"] == "inconsistent" and auto["flagged"] == auto["runs"] == 3
+    assert "align.nis: INCONSISTENT: flagged in 3 of 3 runs" in res.out
+    assert '<h2 id="consistency">Filter consistency</h2>' in html
+    assert 'data-column="align.nis" data-verdict="inconsistent"' in html
 
 
 def test_a_bad_key_is_one_line_naming_file_and_key(cli, tmp_path: Path) -> None:

@@ -350,6 +350,25 @@ def check_run(
     return RunConsistency(false_alarm, [judged.get(c.column, c) for c in checks])
 
 
+def record_consistency(result: RunResult) -> dict[str, dict[str, Any]]:
+    """What a campaign keeps of the automatic check of one run (:func:`check_run`).
+
+    Parameters
+    ----------
+    result : RunResult
+        A completed run.
+
+    Returns
+    -------
+    dict
+        Column -> ``{"consistent": bool or None, "message": str}`` (None: not judged).
+    """
+    return {
+        c.column: {"consistent": c.consistent, "message": c.message()}
+        for c in check_run(result).checks
+    }
+
+
 # ------------------------------------------------------------------------ requirement
 @dataclass(frozen=True)
 class ConsistencyRequirement(Requirement):

@@ -20,7 +20,10 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 
-from cosim.verify.consistency import ConsistencyRequirement  # noqa: E402
+from cosim.verify.consistency import (  # noqa: E402
+    DEFAULT_FALSE_ALARM,
+    ConsistencyRequirement,
+)
 from cosim.verify.requirements import Requirement, Verdict  # noqa: E402
 
 _MAX_LINES = 40
@@ -158,4 +161,126 @@ def consistency_html(campaign: Any, req: Requirement) -> str:
     return (
         f'<p class="consistency" data-id="{html.escape(req.id)}">{len(rows)} run(s) flagged '
         f"(what to do: docs/consistency.md):</p><ul>{''.join(rows[:_MAX_LISTED])}{tail}</ul>"
+    )
+
+
+# ------------------------------------------------------------------ automatic check
+EVIDENCE = 0.01
+"""A filter is called inconsistent over a campaign when its flagged runs are more than
+the false-alarm rate explains at this significance (binomial tail)."""
+
+
+def consistency_section(campaign: Any) -> dict[str, Any]:
+    """The automatic consistency check over a campaign's runs, per NIS/NEES output.
+
+    Each completed run was judged at :data:`~cosim.verify.consistency.DEFAULT_FALSE_ALARM`
+    per run (all its signals together), so a consistent filter's output is flagged in a
+    number of runs no larger than Binomial(n, 0.01); ``p_value`` is that tail at the
+    observed count, and below :data:`EVIDENCE` the filter is called inconsistent.
+
+    Parameters
+    ----------
+    campaign : Campaign
+        A finished campaign.
+
+    Returns
+    -------
+    dict
+        ``false_alarm_per_run`` and ``signals``: column -> ``runs`` (judged),
+        ``flagged``, ``p_value``, ``verdict`` (``"inconsistent"``, ``"no evidence"`` or
+        ``"not judged"``), ``text`` (one sentence) and ``examples`` (run, message).
+    """
+    per: dict[str, dict[str, Any]] = {}
+    for rec in campaign.records:
+        for column, c in (getattr(rec, "consistency", None) or {}).items():
+            entry = per.setdefault(column, {"runs": 0, "flagged": 0, "examples": [], "why": ""})
+            if c["consistent"] is None:
+                entry["why"] = c["message"]
+                continue
+            entry["runs"] += 1
+            if c["consistent"] is False:
+                entry["flagged"] += 1
+                if len(entry["examples"]) < 5:
+                    entry["examples"].append([rec.index, c["message"]])
+    a = DEFAULT_FALSE_ALARM
+    for e in per.values():
+        n, f = e["runs"], e["flagged"]
+        if n == 0:
+            e.update(p_value=None, verdict="not judged", text=e["why"] or "not judged")
+            continue
+        p = float(stats.binom.sf(f - 1, n, a)) if f else 1.0
+        e["p_value"] = p
+        if p < EVIDENCE:
+            e["verdict"] = "inconsistent"
+            e["text"] = (
+                f"INCONSISTENT: flagged in {f} of {n} runs, more than the {100 * a:g} % "
+                f"false-alarm rate explains (p = {p:.2g}); e.g. run {e['examples'][0][0]}: "
+                + e["examples"][0][1].split(": INCONSISTENT: ", 1)[-1]
+            )
+        else:
+            e["verdict"] = "no evidence"
+            e["text"] = (
+                f"no evidence of inconsistency: flagged in {f} of {n} runs"
+                + (f" (p = {p:.2g})" if f else "")
+                + f", within what the {100 * a:g} % false-alarm rate explains"
+            )
+    for e in per.values():
+        e.pop("why", None)
+    return {"false_alarm_per_run": a, "signals": per}
+
+
+def consistency_lines(section: dict[str, Any]) -> list[str]:
+    """The lines ``ins-cosim verify`` prints for :func:`consistency_section`.
+
+    Parameters
+    ----------
+    section : dict
+        From :func:`consistency_section`.
+
+    Returns
+    -------
+    list of str
+        Empty when no NIS/NEES output is recorded.
+    """
+    if not section["signals"]:
+        return []
+    return ["filter consistency (docs/consistency.md):"] + [
+        f"  {column}: {e['text']}" for column, e in section["signals"].items()
+    ]
+
+
+def consistency_overview_html(section: dict[str, Any]) -> str:
+    """The report's "Filter consistency" section for :func:`consistency_section`.
+
+    Parameters
+    ----------
+    section : dict
+        From :func:`consistency_section`.
+
+    Returns
+    -------
+    str
+        HTML ("" when no NIS/NEES output is recorded).
+    """
+    if not section["signals"]:
+        return ""
+    rows = []
+    for column, e in section["signals"].items():
+        examples = "; ".join(f"run {i}: {m}" for i, m in e["examples"])
+        rows.append(
+            f'<tr class="consistency-row" data-column="{html.escape(column)}" '
+            f'data-verdict="{html.escape(e["verdict"])}"><td><code>{html.escape(column)}</code>'
+            f"</td><td>{e['runs']}</td><td>{e['flagged']}</td>"
+            f"<td>{html.escape(e['text'])}</td><td>{html.escape(examples)}</td></tr>"
+        )
+    a = section["false_alarm_per_run"]
+    return (
+        '<h2 id="consistency">Filter consistency</h2>'
+        f"<p>Every run's NIS and NEES outputs judged over windows against their chi-square "
+        f"bands at {100 * a:g} % false alarm per run (docs/consistency.md). A filter flagged "
+        f"in more runs than that rate explains has a wrong sigma: retune R, Q or P0, or "
+        f"model what the filter misses.</p>"
+        '<table class="consistency"><thead><tr><th>output</th><th>runs judged</th>'
+        "<th>runs flagged</th><th>verdict</th><th>where (first runs)</th></tr></thead>"
+        f"<tbody>{''.join(rows)}</tbody></table>"
     )

@@ -34,7 +34,12 @@ import numpy as np  # noqa: E402
 
 from cosim.verify.budget import budget_html, budget_section  # noqa: E402
 from cosim.verify.campaign import Campaign  # noqa: E402
-from cosim.verify.consistency_report import consistency_figure, consistency_html  # noqa: E402
+from cosim.verify.consistency_report import (  # noqa: E402
+    consistency_figure,
+    consistency_html,
+    consistency_overview_html,
+    consistency_section,
+)
 from cosim.verify.records import write_atomic  # noqa: E402
 from cosim.verify.requirements import (  # noqa: E402
     SATISFIED,
@@ -114,6 +119,7 @@ def report_data(campaign: Campaign, created: str) -> dict[str, Any]:
             for r, v in zip(campaign.requirements, campaign.verdicts, strict=True)
         ],
         "budgets": budget_section(campaign),
+        "consistency": consistency_section(campaign),
         "runs": [r.to_dict() for r in campaign.records],
         "provenance": campaign.provenance,
     }
@@ -615,6 +621,7 @@ def write_html(campaign: Campaign, path: Path, data: dict[str, Any] | None = Non
             f'<td class="claim">{_e(v.claim)}</td></tr>'
         )
     parts.append("</tbody></table>")
+    parts.append(consistency_overview_html(data["consistency"]))
 
     for req, v in zip(campaign.requirements, campaign.verdicts, strict=True):
         signal = req.signal + (f" − {req.minus}" if req.minus else "")
