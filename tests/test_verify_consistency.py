@@ -150,3 +150,47 @@ def test_pass_rate_verdict_is_reachable_for_a_consistent_filter() -> None:
     95 % lower bound above 0.95."""
     lower = stats.beta.ppf(0.05, 297, 4)
     assert lower > 0.95
+
+
+def synthetic_result(unconnected: dict, *, dof_column: bool = False, scale: float = 1.0):  # noqa: ANN201
+    """A recording of a filter updating every 2nd step (NIS held in between), seeded."""
+    import numpy as np
+
+    from cosim.results import RunResult
+
+    rng = np.random.default_rng(5)
+    n = 801
+    t = np.arange(n) * 0.1
+    upd = stats.chi2.rvs(3, size=n // 2, random_state=rng) * scale
+    nis = np.concatenate([[0.0], np.repeat(upd, 2)])
+    cols = [("time", t), ("f.nis", nis), ("f.nees", stats.chi2.rvs(3, size=n, random_state=rng))]
+    if dof_column:
+        cols.append(("f.nis_dof", np.full(n, 3.0)))
+    data = np.zeros(n, dtype=[(c, "f8") for c, _ in cols])
+    for c, v in cols:
+        data[c] = v
+    descriptions = {"f.nees": "NEES (chi-square, 3 dof)"}
+    if not dof_column:
+        descriptions["f.nis"] = "NIS of the last update (chi-square, 3 dof)"
+    return RunResult(data, {"descriptions": descriptions, "unconnected": unconnected})
+
+
+def test_check_run_on_a_log_without_truth_judges_only_the_nis() -> None:
+    """A truth input left open: the NEES is not judged (said so), the NIS is, with one
+    sample per update (400 updates, not 801 samples), its dof from the description or
+    from a recorded nis_dof column; a NIS three times too large in variance is flagged
+    "too small by about 1.7x" (sqrt 3)."""
+    from cosim.verify.consistency import check_run
+
+    summary = check_run(synthetic_result({"f": {"rpy_true[1]": 0.0}}))
+    nees = next(c for c in summary.checks if c.column == "f.nees")
+    nis = next(c for c in summary.checks if c.column == "f.nis")
+    assert nees.consistent is None and "no truth" in nees.skipped
+    assert nis.consistent is True and nis.samples == 400 and nis.dof == "3"
+    judged = check_run(synthetic_result({}, dof_column=True, scale=3.0))
+    nis = next(c for c in judged.checks if c.column == "f.nis")
+    assert nis.dof == "per update (f.nis_dof)"
+    assert [s.flag for s in nis.spans] == ["small"]
+    assert 1.5 <= nis.spans[0].factor <= 1.9
+    nees = next(c for c in judged.checks if c.column == "f.nees")
+    assert nees.consistent is True
