@@ -140,11 +140,13 @@ def test_white_band_is_the_chi_square_quantile() -> None:
 
 
 def test_update_instants_take_each_held_value_once() -> None:
-    """A NIS held between updates, 0 before the first: one sample per new value."""
+    """A NIS held between updates, 0 before the first: one sample per new nonzero value."""
     v = np.array([0.0, 0.0, 1.5, 1.5, 1.5, 0.7, 0.7, 2.0])
     assert update_instants(v).tolist() == [2, 5, 7]
     assert update_instants(v, held=False).tolist() == [2, 3, 4, 5, 6, 7]
     assert update_instants(np.zeros(4)).size == 0
+    # a filter restarting (a new position) publishes 0 again: not a sample
+    assert update_instants(np.array([0.0, 1.5, 1.5, 0.0, 0.0, 0.7])).tolist() == [1, 5]
 
 
 def test_spans_merge_windows_and_say_how_far_off() -> None:

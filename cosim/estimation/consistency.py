@@ -210,9 +210,10 @@ class InconsistentSpan:
 def update_instants(values: ArrayLike, *, held: bool = True) -> np.ndarray:
     """Indices of the samples that carry a new value of a statistic.
 
-    A filter publishes its NIS at each update and holds it in between; the first value
-    (0 before the first update) is not a sample. With ``held = False`` (a NEES, new at
-    every step) every sample from the first nonzero one on counts.
+    A filter publishes its NIS at each update and holds it in between; 0 (before the
+    first update, or a filter restarting, e.g. at a new position) is not a sample. With
+    ``held = False`` (a NEES, new at every step) every sample from the first nonzero one
+    on counts.
 
     Parameters
     ----------
@@ -235,6 +236,7 @@ def update_instants(values: ArrayLike, *, held: bool = True) -> np.ndarray:
     else:
         new = np.flatnonzero(np.diff(v) != 0.0) + 1
         idx = np.concatenate(([first], new[new > first]))
+        idx = idx[v[idx] != 0.0]
     return idx[np.isfinite(v[idx])]
 
 

@@ -244,7 +244,10 @@ def _prepare(
         keep &= t <= until + 1e-9
     t, v, d = t[keep], v[keep], d[keep]
     if t.size == 0:
-        return "no sample (the filter never updated in the judged span)"
+        return (
+            "no sample: the output stayed 0 in the judged span (the filter never updated, "
+            "or publishes no NIS, as the HRG UPF)"
+        )
     edges = window_edges(float(t[0]), float(t[-1]), window, DEFAULT_WINDOWS)
     return _Prepared(column, kind, t, v, d, dof_text, edges)
 
