@@ -200,8 +200,14 @@ def run(
         sys.exit(exc.exit_code)
     except UserError as exc:
         _fail(exc)
+    from cosim.verify.consistency import check_run
+
+    consistency = check_run(result)
+    result.metadata["consistency"] = consistency.to_dict()
     csv, meta_file = result.save(out)
     click.echo(f"wrote {csv} ({len(result.data)} rows) and {meta_file}")
+    for line in consistency.lines():
+        click.echo(line)
     if plot:
         from cosim.verify.plots import plot_result
 
@@ -451,6 +457,10 @@ def verify(
     )
     for req, v in zip(campaign.requirements, campaign.verdicts, strict=True):
         click.echo(f"  {v.verdict.upper():<10} {req.id}: {v.reason}")
+    from cosim.verify.consistency_report import consistency_lines, consistency_section
+
+    for line in consistency_lines(consistency_section(campaign)):
+        click.echo(line)
     if "sequential" in campaign.execution:
         from cosim.verify.sequential import runs_taken
 

@@ -8,7 +8,9 @@ On disk a result is two files side by side::
     results.json   metadata: scenario file and sha256, blocks (source, FMU GUID and
                    sha256, FMI version), seeds, units and types of every column,
                    master settings, status and error (and ``terminated`` when a block
-                   ended the run early), software versions
+                   ended the run early), software versions, the recorded columns'
+                   descriptions; ``ins-cosim run`` adds ``consistency``
+                   (docs/consistency.md)
 """
 
 from __future__ import annotations

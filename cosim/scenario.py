@@ -472,6 +472,7 @@ class Scenario:
             "parameters": parameters,
             "seeds": {name: p["seed"] for name, p in parameters.items() if "seed" in p},
             "units": units,
+            "descriptions": {f"{b}.{v}": hosts[b].variables[v].description for b, v in record},
             "software": provenance.versions(),
         }
 

@@ -109,6 +109,9 @@ class PositionFilter:
         UPF effective sample size (1 for the Kalman filters).
     n_resamples : int
         UPF resampling steps so far (0 for the Kalman filters).
+    nis : float
+        NIS of the last update (2 dof; 0 before the first and for the UPF, whose
+        predictive density is a mixture, not a Gaussian).
     """
 
     def __init__(
@@ -134,6 +137,7 @@ class PositionFilter:
         P0 = np.asarray(P0, dtype=float).copy()
         uniform = P0[PSI, PSI] >= UNIFORM_SIGMA**2 * (1.0 - 1e-9)
         self.n_updates = 0
+        self.nis = 0.0
         if self.method == 0:
             self._f = ExtendedKalmanFilter(4, 2)
             self._f.x = x0
@@ -205,6 +209,9 @@ class PositionFilter:
         else:
             self._f.step(z, t1 - t0, hx_args={"E0": E0, "E1": E1})
         self.n_updates += 1
+        if self.method != 1:  # the Kalman filters' innovation, chi-square with 2 dof
+            y, S = self._f.y, self._f.S
+            self.nis = float(y @ np.linalg.solve(S, y))
         self._refresh()
 
     def _refresh(self) -> None:

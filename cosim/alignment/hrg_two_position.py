@@ -77,6 +77,7 @@ class HrgTwoPositionAlignment(Block):
         output("t_conv_2", -1.0, "s", "position 2: time from its start to convergence (-1: not)"),
         output("position_active", 0.0, "1", "position being filtered (0 before the first)"),
         output("ess", 1.0, "1", "UPF effective sample size (1 for the Kalman filters)"),
+        output("nis", 0.0, "1", "NIS of the last update (chi-square, 2 dof; 0 for the UPF)"),
     )
     default_step = 0.1
     default_stop = 2.0
@@ -127,6 +128,7 @@ class HrgTwoPositionAlignment(Block):
             self.drift_north_est = float(f.x[2])
             self.drift_north_sigma = math.sqrt(f.P[2, 2]) / DEG_PER_HOUR
             self.ess = float(f.ess)
+            self.nis = float(f.nis)
             conv = 3.0 * math.sqrt(f.P[PSI, PSI]) <= float(self.conv_band)
             name = f"t_conv_{core.active}"
             if conv and getattr(self, name) < 0.0:

@@ -66,6 +66,9 @@ class RunRecord:
     parameters : dict
         The parameters the run used, ``{block: {name: SI value}}``; empty unless full
         columns were asked for.
+    consistency : dict
+        Column -> ``{"consistent": bool or None, "message": str}``: the automatic check of
+        every NIS/NEES output of a completed run (:func:`cosim.verify.consistency.check_run`).
     """
 
     index: int
@@ -81,6 +84,7 @@ class RunRecord:
     tag: str = ""
     columns: dict[str, np.ndarray] = field(default_factory=dict, repr=False)
     parameters: dict[str, dict[str, Any]] = field(default_factory=dict, repr=False)
+    consistency: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     @property
     def failed(self) -> bool:
@@ -131,6 +135,7 @@ class RunRecord:
                 else {"value": _num(m.value), "passed": m.passed, "note": m.note}
                 for k, m in self.metrics.items()
             },
+            **({"consistency": self.consistency} if self.consistency else {}),
         }
 
     @classmethod
@@ -163,6 +168,7 @@ class RunRecord:
             cpu_time=float(d.get("cpu_time", 0.0)),
             worker=d.get("worker", ""),
             t_end=float(d.get("t_end", math.nan)),
+            consistency=d.get("consistency", {}),
         )
 
 

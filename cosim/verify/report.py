@@ -34,6 +34,12 @@ import numpy as np  # noqa: E402
 
 from cosim.verify.budget import budget_html, budget_section  # noqa: E402
 from cosim.verify.campaign import Campaign  # noqa: E402
+from cosim.verify.consistency_report import (  # noqa: E402
+    consistency_figure,
+    consistency_html,
+    consistency_overview_html,
+    consistency_section,
+)
 from cosim.verify.estimate_plots import estimate_figure  # noqa: E402
 from cosim.verify.records import write_atomic  # noqa: E402
 from cosim.verify.requirements import (  # noqa: E402
@@ -114,6 +120,7 @@ def report_data(campaign: Campaign, created: str) -> dict[str, Any]:
             for r, v in zip(campaign.requirements, campaign.verdicts, strict=True)
         ],
         "budgets": budget_section(campaign),
+        "consistency": consistency_section(campaign),
         "runs": [r.to_dict() for r in campaign.records],
         "provenance": campaign.provenance,
     }
@@ -533,6 +540,8 @@ def requirement_figure(campaign: Campaign, req: Requirement, verdict: Verdict) -
     str
         Base64 of the PNG.
     """
+    if req.criterion == "consistent":
+        return consistency_figure(campaign, req, verdict)
     return _png(build_requirement_figure(campaign, req, verdict))
 
 
@@ -615,6 +624,7 @@ def write_html(campaign: Campaign, path: Path, data: dict[str, Any] | None = Non
             f'<td class="claim">{_e(v.claim)}</td></tr>'
         )
     parts.append("</tbody></table>")
+    parts.append(consistency_overview_html(data["consistency"]))
 
     for req, v in zip(campaign.requirements, campaign.verdicts, strict=True):
         signal = req.signal + (f" − {req.minus}" if req.minus else "")
@@ -638,6 +648,7 @@ def write_html(campaign: Campaign, path: Path, data: dict[str, Any] | None = Non
             f'<figure><img alt="{_e(req.id)}: error vs time, Monte Carlo envelope and '
             f'histogram" src="data:image/png;base64,{requirement_figure(campaign, req, v)}">'
             "</figure>",
+            consistency_html(campaign, req),
             budget_html(data.get("budgets", {}).get(req.id)),
             "</section>",
         ]

@@ -98,6 +98,12 @@ def judge(
     verdict = _judge(replace(req, **changes), metrics)
     verdict.statistic = req.statistic
     verdict.details.setdefault("confidence", gamma)
+    flagged = [(i, m.note) for i, m in enumerate(metrics) if m and m.passed is False and m.note]
+    if req.criterion == "consistent" and flagged:  # say where the filter is off
+        verdict.reason += (
+            f"; {len(flagged)} run(s) flagged, e.g. run {flagged[0][0]}: {flagged[0][1]}"
+        )
+        verdict.details["flagged_runs"] = [i for i, _ in flagged]
     return verdict
 
 

@@ -14,8 +14,9 @@ from typing import Any
 
 from cosim.errors import ScenarioError
 from cosim.scenario import Scenario
+from cosim.verify.consistency import load_all
 from cosim.verify.estimates import check_truth
-from cosim.verify.requirements import Requirement, load_requirements
+from cosim.verify.requirements import Requirement
 from cosim.verify.seeds import Stratified
 from cosim.verify.windows import check_windows
 
@@ -121,7 +122,10 @@ def check_tables(
         for b, v in master.record:
             var = system.blocks[b].variables[v]
             units[f"{b}.{v}"] = getattr(var, "conversion_unit", var.unit)
-        reqs = load_requirements(tables, units, file, outputs, on_failure=settings.on_failure)
+        descriptions = {
+            f"{b}.{v}": system.blocks[b].variables[v].description for b, v in master.record
+        }
+        reqs = load_all(tables, units, file, outputs, descriptions, settings.on_failure)
         check_windows(reqs, master.settings.start, master.settings.stop, file)
         check_truth(reqs, system, master.metadata.get("unconnected", {}), file)
     parameters = {b: dict(p) for b, p in system.parameters.items()}

@@ -47,6 +47,7 @@ from cosim.blocks import FmuHost
 from cosim.errors import SimulationError, UserError
 from cosim.isolate import StepBoard, watch
 from cosim.scenario import build_master, load_scenario
+from cosim.verify.consistency import ConsistencyRequirement, record_consistency
 from cosim.verify.records import RunRecord, decimation
 from cosim.verify.requirements import Requirement, RunMetric, error_signal, evaluate
 
@@ -279,13 +280,16 @@ def run_one(spec: WorkerSpec, job: Job) -> RunRecord:
         history["time"] = np.asarray(result.time, dtype=float)[idx]
         for k, req in enumerate(spec.requirements):
             t, e, sigma = error_signal(req, result)
-            if status == "completed":
+            if status == "completed" and isinstance(req, ConsistencyRequirement):
+                metrics[req.id] = req.judge(result)[0]
+            elif status == "completed":
                 metrics[req.id] = evaluate(req, t, e, state.settings.start, state.settings.stop)
             history[f"e_{k}"] = e[idx]
             if sigma is not None:
                 history[f"s_{k}"] = sigma[idx]
         if spec.keep:
             columns = {n: np.array(result.data[n], dtype=float) for n in result.data.dtype.names}
+    consistency = record_consistency(result) if status == "completed" and result else {}
     return RunRecord(
         index=job.index,
         seeds=dict(job.seeds),
@@ -300,6 +304,7 @@ def run_one(spec: WorkerSpec, job: Job) -> RunRecord:
         tag=job.tag,
         columns=columns,
         parameters=params if spec.keep else {},
+        consistency=consistency,
     )
 
 
