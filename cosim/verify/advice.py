@@ -114,8 +114,6 @@ class Advice:
         """
         if self.runs is None:
             return self.note or f"not decided by {CAP} runs"
-        if self.more == 0:
-            return f"the {self.made} runs made decide it"
         return (
             f"about {self.runs} runs in total ({self.more} more) would decide it in "
             f"{100 * self.share:g} % of campaigns (likely {self.verdict})"
@@ -251,7 +249,6 @@ def advise(
     metrics: Sequence[RunMetric | None],
     confidence: float,
     *,
-    decided: bool = False,
     share: float = ADVICE_SHARE,
     cap: int = CAP,
 ) -> Advice:
@@ -266,8 +263,6 @@ def advise(
         The runs made, in run order; None for a failed run.
     confidence : float
         Confidence of the verdict.
-    decided : bool
-        Whether the runs made already decide it (then the advice is the runs made).
     share : float
         Probability of a decision to choose the run count for, 0 < share < 1.
     cap : int
@@ -285,8 +280,6 @@ def advise(
     def none(note: str) -> Advice:
         return Advice(None, made, share, math.nan, UNDECIDED, method, note)
 
-    if decided:
-        return Advice(made, made, share, 1.0, UNDECIDED, method)
     failed = sum(m is None for m in metrics)
     if failed and req.on_failure == "undecided":
         return none(
@@ -317,7 +310,7 @@ def advise(
     if req.statistic in ("pass_rate", "quantile", "max"):
         first = next((t for t in range(n + 1, min(cap, n + SCAN) + 1) if ok(t)), None)
         if first is not None:
-            return _advice(req, probability, first, n, made, share, method)
+            return _advice(probability, first, n, made, share, method)
         lo = min(cap, n + SCAN)
     step = 1
     hi = lo + step
@@ -332,11 +325,10 @@ def advise(
         mid = (lo + hi) // 2
         lo, hi = (lo, mid) if ok(mid) else (mid, hi)
     hi = next(total for total in range(lo + 1, hi + 1) if total == hi or ok(total))
-    return _advice(req, probability, hi, n, made, share, method)
+    return _advice(probability, hi, n, made, share, method)
 
 
 def _advice(
-    req: Requirement,
     probability: Callable[[int], tuple[float, float]],
     total: int,
     n: int,
