@@ -20,6 +20,13 @@ from cosim.errors import SimulationError, UserError
 DEFAULT_FMU_DIR = Path("fmus/build")
 
 
+#: What ``characterize`` says when the optional allantools is not installed.
+ALLANTOOLS_MISSING = (
+    "ins-cosim characterize needs allantools, an optional dependency (it brings pytest and "
+    "numpydoc along, so a plain install leaves it out): pip install 'ins-cosim[allan]'"
+)
+
+
 def _fail(exc: UserError) -> None:
     click.echo(f"error: {exc}", err=True)
     sys.exit(exc.exit_code)
@@ -594,7 +601,12 @@ def characterize(
     seed: int,
 ) -> None:
     """Allan analysis of a static IMU LOG: noise terms, plot, StrapdownImu parameters."""
-    from cosim.sensors.report import characterize_log, write_outputs
+    try:
+        from cosim.sensors.report import characterize_log, write_outputs
+    except ModuleNotFoundError as exc:  # allantools is an optional dependency
+        if exc.name != "allantools":
+            raise
+        _fail(UserError(ALLANTOOLS_MISSING))
 
     try:
         result = characterize_log(

@@ -43,6 +43,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from cosim.blockchecks import check_blocks
 from cosim.blocks import BlockCallError, BlockHost, BlockTerminated
 from cosim.errors import ScenarioError, SimulationError
 from cosim.results import RunResult
@@ -327,6 +328,7 @@ class Master:
                     f"({s.n_steps}), got {k!r}",
                     key=f"blocks.{name}.rate",
                 )
+        check_blocks(system, s.step)
         names = list(system.blocks)
         self.order, self.delayed, self.loops = schedule(names, system.connections)
         if s.coupling == JACOBI:

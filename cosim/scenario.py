@@ -343,21 +343,21 @@ class Scenario:
         for pname, raw in spec.parameters.items():
             key = f"blocks.{spec.name}.parameters.{pname}"
             scalars = expand(host, pname)
+            settable = base_names(
+                [v.name for v in host.variables.values() if v.causality in ("parameter", "input")]
+            )
+            tip = did_you_mean(pname, settable)
             if not scalars:
-                settable = [
-                    v.name for v in host.variables.values() if v.causality in ("parameter", "input")
-                ]
-                tip = did_you_mean(pname, base_names(settable))
                 raise self.error(
                     f"block '{spec.name}' has no variable '{pname}'.{tip} "
-                    f"Parameters and inputs: {', '.join(base_names(settable))}",
+                    f"Parameters and inputs: {', '.join(settable)}",
                     key=key,
                 )
             var0 = scalars[0]
             if var0.causality not in ("parameter", "input"):
                 raise self.error(
                     f"'{spec.name}.{pname}' is an {var0.causality}; only parameters and "
-                    f"inputs can be set",
+                    f"inputs can be set.{tip}",
                     key=key,
                 )
             try:

@@ -188,6 +188,7 @@ class HrgPlatform(Block):
     )
     default_step = 0.01
     default_stop = 1.0
+    shared_values = {"lat": "latitude", "g": "gravity"}
 
     def initialize(self) -> None:
         if not self.g > 0.0:

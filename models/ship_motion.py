@@ -78,6 +78,7 @@ class ShipMotion(Block):
         *MOTION_OUTPUTS,
     )
     default_stop = 2.0
+    shared_values = {"lat0": "latitude", "h0": "height"}
 
     def initialize(self) -> None:
         per = np.asarray(self.period, dtype=float)

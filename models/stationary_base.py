@@ -72,6 +72,7 @@ class StationaryBase(Block):
         *MOTION_OUTPUTS,
     )
     default_stop = 2.0
+    shared_values = {"lat0": "latitude", "h0": "height"}
 
     def initialize(self) -> None:
         if self.jitter_order not in (1, 2):

@@ -197,7 +197,9 @@ def test_judge_follows_the_bounds_and_the_confidence_override() -> None:
         for gamma in (0.95, 0.99):
             lo, up = bounds(x, gamma)
             for row, lo_i, up_i in zip(x, lo, up, strict=True):
-                v = judge(req, [RunMetric(m, m <= req.limit) for m in row], confidence=gamma)
+                v = judge(
+                    req, [RunMetric(m, m <= req.limit) for m in row], confidence=gamma, advise=False
+                )
                 want = (
                     SATISFIED if up_i <= req.limit else VIOLATED if lo_i > req.limit else UNDECIDED
                 )

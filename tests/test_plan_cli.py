@@ -11,8 +11,12 @@ alpha = 0.05 as 0.05 x (10, 10, 20, 40) / 80:
   0.0125^(1/40) = 0.896 >= 0.85: decided at 40 runs, and the campaign stops there,
   before its cap of 80. (Naive re-testing at 95 % would stop at 20: 0.05^(1/20) = 0.861.)
 
-A fixed campaign at 95 % needs n >= ln 0.05 / ln P: 5 runs for P = 0.5, 19 for 0.85 (what
-``plan`` prints).
+A fixed campaign at 95 % needs n >= ln 0.05 / ln P runs, all passing: 5 runs for P = 0.5
+(the pilot's first 5 runs decide RATE-50: what ``plan`` prints), 19 for 0.85. The 10-run
+pilot leaves RATE-85 undecided, and ``plan`` prints the runs in total that decide it with
+predicted probability 80 % (cosim/verify/advice.py): 40, where one run of 40 may fail
+(19 runs would need all 9 more to pass, predicted at 73 %); ``verify --runs 10`` advises
+the same.
 """
 
 from __future__ import annotations
@@ -124,13 +128,20 @@ def test_plan_prints_runs_and_time_per_requirement(tmp_path: Path) -> None:
         "[0.7411, 1]",
         "0.85",
         "undecided",
-        "19",
+        "40",
         "satisfied",
     ]
     assert a[9].startswith("10 runs, ") and b[9].startswith("40 runs, "), (a, b)
     assert b[8].endswith((" s", " min")) and float(b[8].split()[0]) > 0
     assert "--until-decided --runs 10 --max-runs 80" in out.replace("\n", " ")
     assert not list(tmp_path.glob("ins-cosim-plan-*")), "the pilot folder is removed"
+    # issue 27, acceptance 4: verify on the same 10 runs advises the same number
+    verify = run(tmp_path, "verify", tmp_path / "tiny.toml", "--runs", 10, "--workers", 1,
+                 "--report", tmp_path / "v", "--no-progress")  # fmt: skip
+    assert verify.returncode == 2, verify.stderr  # RATE-85 undecided
+    advised = re.search(r"RATE-85: .*about (\d+) runs in total \((\d+) more\)", verify.stdout)
+    assert advised, verify.stdout
+    assert advised.group(1) == b[6] == "40" and advised.group(2) == "30"
 
 
 # slow (~17 s): an interrupted sequential campaign of real processes, resumed, and its

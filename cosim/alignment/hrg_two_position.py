@@ -81,6 +81,8 @@ class HrgTwoPositionAlignment(Block):
     )
     default_step = 0.1
     default_stop = 2.0
+    step_multiples = ("period",)
+    shared_values = {"lat": "latitude", "g": "gravity"}
 
     def initialize(self) -> None:
         self._core = TwoPositionAligner(

@@ -220,6 +220,8 @@ class SinsStaticAlignment(Block):
     )
     default_step = 0.1
     default_stop = 300.0
+    step_multiples = ("kf_period",)
+    shared_values = {"lat": "latitude", "h": "height"}
 
     # ------------------------------------------------------------ set-up
     def tuning(self) -> FilterTuning:
@@ -424,8 +426,8 @@ class SinsStaticAlignment(Block):
             k = int(round(float(self.kf_period) / h))
             if k < 1 or abs(k * h - float(self.kf_period)) > 1e-9 * float(self.kf_period):
                 raise AlignmentConfigError(
-                    f"SinsStaticAlignment.kf_period = {self.kf_period} s must be a whole "
-                    f"multiple of the block's step {h} s"
+                    f"SinsStaticAlignment.kf_period = {self.kf_period:.9g} s must be a whole "
+                    f"multiple of the block's step {h:.9g} s"
                 )
             self._k_upd = k
         nav = self._nav

@@ -232,6 +232,7 @@ class TransferAlignment(Block):
     )
     default_step = 0.02
     default_stop = 10.0
+    step_multiples = ("period",)
 
     # ------------------------------------------------------------------ set-up
     @property
@@ -449,8 +450,8 @@ class TransferAlignment(Block):
             k = int(round(self.period / h))
             if k < 1 or abs(k * h - self.period) > 1e-9 * self.period:
                 raise TransferRuntimeError(
-                    f"TransferAlignment.period ({self.period} s) must be a whole number of "
-                    f"steps; the block steps by {h} s (run it at rate 1, every macro step)"
+                    f"TransferAlignment.period ({self.period:.9g} s) must be a whole number of "
+                    f"steps; the block steps by {h:.9g} s (run it at rate 1, every macro step)"
                 )
             self._h, self._k = h, k
             if isinstance(self._filter, MatchingFilter):

@@ -23,7 +23,6 @@ __all__ = [
     "ksigma_normal_bounds",
     "max_bounds",
     "rms_bounds",
-    "runs_to_decide",
     "wilks_lower_rank",
     "wilks_min_runs",
     "wilks_upper_bound",
@@ -375,31 +374,3 @@ def max_bounds(
     upper = x[..., -1] if n >= wilks_min_runs(p, confidence) else np.full(x.shape[:-1], np.inf)
     lower = x[..., r_lo - 1] if r_lo is not None else np.full(x.shape[:-1], -np.inf)
     return (float(lower), float(upper)) if x.ndim == 1 else (lower, upper)
-
-
-def runs_to_decide(n: int, value: float, lower: float, upper: float, limit: float) -> int | None:
-    """About how many runs would decide an undecided ``rms`` or ``mean+ksigma`` verdict.
-
-    The bound's distance from the estimate shrinks as ``1 / sqrt(n)``; the runs at which
-    it would reach the limit, if the estimate stays where it is, are
-    ``n * (distance / (limit - value))^2`` (with these a campaign decides about every
-    other time).
-
-    Parameters
-    ----------
-    n : int
-        Runs judged.
-    value, lower, upper : float
-        The estimate and its bounds.
-    limit : float
-        The requirement's limit.
-
-    Returns
-    -------
-    int or None
-        None when the estimate is on the limit or a bound is not finite.
-    """
-    gap, width = (limit - value, upper - value) if value < limit else (value - limit, value - lower)
-    if not (gap > 0 and math.isfinite(width)):
-        return None
-    return max(n + 1, math.ceil(n * (width / gap) ** 2))

@@ -1,33 +1,25 @@
 """``ins-cosim plan``: a pilot campaign, and the runs each requirement needs to be decided.
 
 The pilot is the first ``pilot`` runs of the scenario's campaign (its seed and seed rule:
-a later ``verify`` with the same seed repeats them). From the pilot's metrics of each
-requirement the plan predicts the runs n needed for a verdict at the requirement's
-confidence, by judging *typical* campaigns: the campaign of n runs whose metrics are the
-pilot's empirical quantiles at the levels (i + 1/2) / n, i = 0 .. n - 1 (the pilot's
-distribution, sampled evenly). n is the smallest run count at which
-:func:`cosim.verify.statistics.judge` decides that campaign (found by doubling, then
-bisection), with the statistic's own bounds, so the method per statistic is:
+a later ``verify`` with the same seed repeats them). The runs each requirement needs are
+the advice :func:`cosim.verify.statistics.judge` gives under its verdict on the pilot's
+runs (:func:`cosim.verify.advice.advise`): the fewest runs in total, the pilot's runs
+included (failed runs counted as the requirement's ``on_failure`` says), at which the
+campaign is decided with probability :data:`cosim.verify.advice.ADVICE_SHARE` (80 %),
+predicted from the pilot. ``verify --runs pilot`` with the same seed makes the same runs
+and prints the same number. When the pilot already decides a requirement, the plan gives
+the fewest of its first runs that decide it (what ``verify --runs n`` would show).
 
-- ``p<q>`` and ``max`` with every pilot run passing: Wilks' minimum runs (the runs at
-  which the sample maximum, or the order statistic of the bound, is a bound at the
-  confidence); with failing runs, the runs at which the pilot's fraction of failing
-  runs moves the order-statistic bound clear of the limit;
-- ``pass_rate``: the runs at which the Clopper-Pearson bound at the pilot's pass rate
-  clears the required probability;
-- ``rms``, ``mean+ksigma``: the runs at which the statistic's confidence bound, at the
-  pilot's value and spread, clears the limit.
-
-It is a point prediction: a real campaign of n runs decides with roughly even odds
-(its statistic scatters around the pilot's). A pilot value close to the limit needs
-many runs; beyond ``cap`` runs the plan says so. The wall time of n runs is the pilot's
-fixed cost (preparing the scenario, starting workers) plus n times its time per run
-divided by the worker count. The same typical campaign judged at the looks of
-``verify --until-decided`` (:mod:`cosim.verify.sequential`) gives the runs that takes.
-A ``[campaign] stratify`` scenario is planned the same way: its pilot is the fixed
-campaign of ``pilot`` runs, which is also the first look batch of ``verify
---until-decided --runs pilot`` (one Latin hypercube per look batch), and the typical
-campaigns assume nothing about how the runs were drawn.
+The wall time of n runs is the pilot's fixed cost (preparing the scenario, starting
+workers) plus n times its time per run divided by the worker count. The runs ``verify
+--until-decided`` takes (:mod:`cosim.verify.sequential`) are predicted by judging, at
+its looks, *typical* campaigns: the campaign of n runs whose metrics are the pilot's
+empirical quantiles at the levels (i + 1/2) / n (the pilot's distribution, sampled
+evenly), a point prediction (such a campaign decides with roughly even odds). A
+``[campaign] stratify`` scenario is planned the same way: its pilot is the fixed campaign
+of ``pilot`` runs, which is also the first look batch of ``verify --until-decided --runs
+pilot`` (one Latin hypercube per look batch), and the predictions assume nothing about
+how the runs were drawn.
 """
 
 from __future__ import annotations
@@ -43,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from cosim.verify.advice import ADVICE_SHARE, CAP
 from cosim.verify.campaign import CampaignError, run_campaign
 from cosim.verify.requirements import UNDECIDED, Requirement, RunMetric
 from cosim.verify.sequential import (
@@ -52,6 +45,7 @@ from cosim.verify.sequential import (
     plan_looks,
     requirement_confidence,
 )
+from cosim.verify.statistics import judge
 
 __all__ = [
     "CAP",
@@ -62,14 +56,11 @@ __all__ = [
     "format_plan",
     "make_plan",
     "plan_requirement",
-    "runs_to_decide",
     "typical_metrics",
 ]
 
 #: Pilot runs when not given.
 DEFAULT_PILOT = 20
-#: Most runs a plan looks at.
-CAP = 10_000
 
 
 @dataclass
@@ -94,9 +85,10 @@ class RequirementPlan:
     pilot_verdict : str
         The verdict on the pilot's runs.
     runs : int or None
-        Runs to decide at ``confidence`` (None: more than the cap, or cannot plan).
+        Runs in total to decide at ``confidence`` with probability ``ADVICE_SHARE`` (the
+        pilot's runs included; None: not by the cap, or cannot plan).
     verdict : str
-        The verdict a campaign of ``runs`` typical runs reaches.
+        The likelier verdict of a campaign of ``runs`` runs.
     sequential_runs : int or None
         Runs ``verify --until-decided`` takes on typical runs (None: not by its cap).
     note : str
@@ -220,47 +212,6 @@ def typical_metrics(req: Requirement, values: Sequence[float], n: int) -> list[R
     return [RunMetric(float(v), bool(v <= req.limit)) for v in x[idx]]
 
 
-def runs_to_decide(
-    req: Requirement, values: Sequence[float], confidence: float, cap: int = CAP
-) -> tuple[int | None, str]:
-    """The fewest runs at which a typical campaign is decided at ``confidence``.
-
-    Parameters
-    ----------
-    req : Requirement
-        The requirement.
-    values : sequence of float, shape (m,)
-        The pilot's metrics.
-    confidence : float
-        The confidence of the verdict.
-    cap : int
-        Most runs looked at.
-
-    Returns
-    -------
-    (int or None, str)
-        The runs and the verdict then; (None, "undecided") when not decided by ``cap``.
-    """
-
-    def verdict(n: int) -> str:
-        return judge_at(req, typical_metrics(req, values, n), confidence).verdict
-
-    lo, n = 0, 1
-    while n < cap and verdict(n) == UNDECIDED:
-        lo, n = n, 2 * n
-    n = min(n, cap)
-    if verdict(n) == UNDECIDED:
-        return None, UNDECIDED
-    hi = n
-    while hi - lo > 1:  # bisection between an undecided and a decided run count
-        mid = (lo + hi) // 2
-        if verdict(mid) == UNDECIDED:
-            lo = mid
-        else:
-            hi = mid
-    return hi, verdict(hi)
-
-
 def _estimate(req: Requirement, values: np.ndarray) -> tuple[float, float, str]:
     """The pilot's point statistic, its limit and unit."""
     n = values.size
@@ -306,10 +257,14 @@ def plan_requirement(
     RequirementPlan
     """
     conf = requirement_confidence(req)
-    pilot_verdict = judge_at(req, metrics, conf)
+    pilot_verdict = judge(req, metrics, confidence=conf)  # the verdict and advice of verify
     used = [m for m in metrics if m is not None]
     failed = len(metrics) - len(used)
-    note = f"{failed} of {len(metrics)} pilot runs failed (left out of the plan)" if failed else ""
+    note = (
+        f"{failed} of {len(metrics)} pilot runs failed (on_failure = '{req.on_failure}')"
+        if failed
+        else ""
+    )
     short = [m for m in used if m.passed is None]
     base = {"id": req.id, "statistic": req.statistic_text, "confidence": conf}
     if not used or short:
@@ -321,7 +276,20 @@ def plan_requirement(
         )  # fmt: skip
     values = np.array([m.value for m in used], dtype=float)
     estimate, limit, unit = _estimate(req, values)
-    runs, verdict = runs_to_decide(req, values, conf, cap)
+    if pilot_verdict.verdict != UNDECIDED:  # the fewest first runs that decide it
+        runs = next(
+            n for n in range(1, len(metrics) + 1)
+            if judge_at(req, metrics[:n], conf).verdict != UNDECIDED
+        )  # fmt: skip
+        verdict = judge_at(req, metrics[:runs], conf).verdict
+    else:
+        runs = pilot_verdict.details.get("runs_to_decide")
+        verdict = pilot_verdict.details.get("verdict_then", UNDECIDED)
+        if runs is None:
+            tip = pilot_verdict.reason.rsplit("; ", 1)[-1]
+            note = f"{note}; {tip}" if note else tip
+        elif runs > cap:
+            runs, verdict = None, UNDECIDED
     seq = None
     if looks is not None:
         for n, c in zip(looks.runs, looks.confidences(conf), strict=True):
@@ -478,13 +446,12 @@ def format_plan(plan: Plan) -> str:
         if p.note:
             lines.append(f"note: {p.id}: {p.note}")
     lines.append(
-        "runs to decide: the fewest runs at which a campaign spread as the pilot (its "
-        "quantiles) is decided by the statistic's bound at its confidence (Wilks' minimum "
-        "runs for p<q>/max when every run passes, Clopper-Pearson at the pilot's rate for "
-        "pass_rate, the statistic's confidence bound at the pilot's value for rms and "
-        "mean+ksigma); a real campaign of that many runs decides with about even odds. The "
-        "pilot's value is itself uncertain (pilot bounds: its confidence bounds at the "
-        "requirement's confidence): a limit inside them makes the prediction rough."
+        f"runs to decide: the runs in total, the pilot's included, at which the campaign is "
+        f"decided with probability {100 * ADVICE_SHARE:g} % as predicted from the pilot (what "
+        f"`verify --runs {plan.pilot}` advises on the same runs; docs/statistics.md); for a "
+        f"requirement the pilot decides, the fewest of its first runs that decide it. The "
+        f"pilot's value is itself uncertain (pilot bounds: its confidence bounds at the "
+        f"requirement's confidence)."
     )
     if plan.looks is not None:
         looks = ", ".join(str(n) for n in plan.looks.runs)

@@ -39,6 +39,10 @@ FloatArray = NDArray[np.float64]
 #: The note of a requirement whose filter has no linear error model here.
 NO_MODEL = "no linear error model for this filter"
 
+#: Largest condition number of the standardised regressors' correlation matrix (with the
+#: intercept) before they are called collinear.
+COLLINEAR = 1e10
+
 #: The formula stated in reports.
 SE_FORMULA = (
     "ordinary least squares with an intercept; se(b_j) = sqrt(s^2 [(X^T X)^-1]_jj), "
@@ -125,28 +129,42 @@ def ols(y: FloatArray, X: FloatArray, names: tuple[str, ...], units: tuple[str, 
     Raises
     ------
     ValueError
-        Fewer than ``p + 2`` runs (no residual degree of freedom), or collinear columns.
+        Fewer than ``p + 2`` runs (no residual degree of freedom), a column that does
+        not vary, or columns collinear after standardising (condition number of their
+        correlation matrix over :data:`COLLINEAR`).
     """
     y = np.asarray(y, dtype=float)
     X = np.asarray(X, dtype=float).reshape(y.size, -1)
     n, p = X.shape
     if n < p + 2:
         raise ValueError(f"{n} runs for {p} regressors: at least {p + 2} needed")
-    A = np.column_stack([np.ones(n), X])
+    # Standardise the columns (centre, unit spread): the fit does not change, but the
+    # condition number then measures collinearity, not the columns' units (raw SI draws
+    # of 1e-7 rad/s beside 1e-3 rad give 1e15 for independent columns).
+    center, scale = X.mean(axis=0), X.std(axis=0)
+    flat = [names[j] for j in range(p) if not scale[j] > 1e-12 * abs(center[j])]
+    if flat:
+        raise ValueError(f"{', '.join(flat)} does not vary over the runs")
+    Z = (X - center) / scale
+    A = np.column_stack([np.ones(n), Z])
     xtx = A.T @ A
-    if np.linalg.cond(xtx) > 1e12:
-        raise ValueError("the regressors are collinear (or one does not vary)")
+    cond = float(np.linalg.cond(xtx / n))
+    if cond > COLLINEAR:
+        raise ValueError(
+            f"the regressors are collinear (condition number {cond:.3g} of their "
+            f"standardised correlation, over {COLLINEAR:g})"
+        )
     inv = np.linalg.inv(xtx)
-    beta = inv @ (A.T @ y)
-    resid = y - A @ beta
+    gamma = inv @ (A.T @ y)
+    resid = y - A @ gamma
     dof = n - p - 1
     s2 = float(resid @ resid) / dof
-    se = np.sqrt(np.clip(np.diag(inv) * s2, 0.0, None))
+    se_z = np.sqrt(np.clip(np.diag(inv) * s2, 0.0, None))
+    slope, se = gamma[1:] / scale, se_z[1:] / scale  # back to the columns' own units
+    intercept = float(gamma[0] - slope @ center)
     ss_tot = float(np.sum((y - y.mean()) ** 2))
     r2 = 1.0 - float(resid @ resid) / ss_tot if ss_tot > 0 else math.nan
-    return Regression(
-        tuple(names), tuple(units), beta[1:], se[1:], float(beta[0]), math.sqrt(s2), r2, n
-    )
+    return Regression(tuple(names), tuple(units), slope, se, intercept, math.sqrt(s2), r2, n)
 
 
 def drawn_parameters(

@@ -289,9 +289,10 @@ def judge_at(req: Requirement, metrics: Sequence[RunMetric | None], confidence: 
     Returns
     -------
     Verdict
-        As :func:`cosim.verify.statistics.judge`.
+        As :func:`cosim.verify.statistics.judge`, without runs-needed advice (a look's
+        confidence is not the requirement's).
     """
-    return judge(req, metrics, confidence=confidence)
+    return judge(req, metrics, confidence=confidence, advise=False)
 
 
 @dataclass

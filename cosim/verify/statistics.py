@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from cosim.verify.advice import advise as runs_advice
 from cosim.verify.bounds import (
     BOOTSTRAP_MIN_RUNS,
     clopper_pearson,
@@ -24,7 +25,6 @@ from cosim.verify.bounds import (
     ksigma_normal_bounds,
     max_bounds,
     rms_bounds,
-    runs_to_decide,
     wilks_lower_rank,
     wilks_min_runs,
     wilks_upper_bound,
@@ -50,7 +50,6 @@ __all__ = [
     "max_bounds",
     "overall_exit_code",
     "rms_bounds",
-    "runs_to_decide",
     "wilks_lower_rank",
     "wilks_min_runs",
     "wilks_upper_bound",
@@ -64,6 +63,7 @@ def judge(
     metrics: Sequence[RunMetric | None],
     *,
     confidence: float | None = None,
+    advise: bool = True,
 ) -> Verdict:
     """The campaign verdict of one requirement.
 
@@ -76,6 +76,10 @@ def judge(
     confidence : float, optional
         Confidence of every bound instead of the requirement's own (e.g. a share of
         ``1 - confidence`` spent at one look of a sequential campaign).
+    advise : bool
+        Add to an undecided verdict the runs in total that would decide it
+        (:func:`cosim.verify.advice.advise`, from the runs made): ``details``
+        ``runs_to_decide`` and one clause in ``reason`` and ``claim``.
 
     Returns
     -------
@@ -95,7 +99,8 @@ def judge(
         changes["probability"] = DEFAULT_MAX_PROBABILITY
     if req.statistic in DEFAULT_ASSUME and req.assume is None:
         changes["assume"] = DEFAULT_ASSUME[req.statistic]
-    verdict = _judge(replace(req, **changes), metrics)
+    full = replace(req, **changes)
+    verdict = _judge(full, metrics)
     verdict.statistic = req.statistic
     verdict.details.setdefault("confidence", gamma)
     flagged = [(i, m.note) for i, m in enumerate(metrics) if m and m.passed is False and m.note]
@@ -104,6 +109,13 @@ def judge(
             f"; {len(flagged)} run(s) flagged, e.g. run {flagged[0][0]}: {flagged[0][1]}"
         )
         verdict.details["flagged_runs"] = [i for i, _ in flagged]
+    if advise and verdict.verdict == UNDECIDED:
+        tip = runs_advice(full, metrics, gamma)
+        verdict.details["runs_to_decide"] = tip.runs
+        verdict.details["runs_advice"] = tip.method
+        verdict.details["verdict_then"] = tip.verdict
+        verdict.reason += f"; {tip.text()}"
+        verdict.claim += f"; {tip.text()}"
     return verdict
 
 
@@ -270,15 +282,13 @@ def _statistic(req: Requirement, used: list[RunMetric]) -> Verdict:
         claim = f"with {conf} confidence fewer than {100 * upper:.3g} % {share} (< {100 * p:g} %)"
     else:
         verdict = UNDECIDED
-        need = wilks_min_runs(p, gamma)
         reason = (
             f"{observed}; the pass rate's {conf} bounds [{lower:.4f}, {upper:.4f}] contain "
-            f"{p:g}: more runs needed (at least {need} runs, all passing)"
+            f"{p:g}: more runs needed"
         )
         claim = (
             f"with {conf} confidence between {100 * lower:.3g} % and {100 * upper:.3g} % {share}: "
-            f"neither at least {100 * p:g} % nor less is shown; at least {need} runs, all "
-            f"passing, would show it"
+            f"neither at least {100 * p:g} % nor less is shown"
         )
     return Verdict(
         req.id,
@@ -320,9 +330,7 @@ def _bounded(
         claim = f"with {conf} confidence {pop} is above {_fmt(lower, unit)} (> {lim})"
     else:
         verdict = UNDECIDED
-        more = runs_to_decide(n, value, lower, upper, req.limit)
-        details["runs_to_decide"] = more
-        tip = f"about {more} runs would likely decide" if more else "more runs needed"
+        tip = "more runs needed"
         side = "<=" if value <= req.limit else ">"
         reason = (
             f"{observed} {side} {lim}, but its {conf} confidence bounds {interval} contain "
@@ -391,14 +399,12 @@ def _max(req: Requirement, values: np.ndarray, common: dict[str, int]) -> Verdic
             reason += f"; 1 - {p:g}^{n} = {1 - p**n:.4f} >= {gamma:g}"
             claim += f" (>= {100 * p:g} %); that every run meets it is not shown"
         else:
-            details["runs_to_decide"] = need
             reason += (
                 f", but {n} passing runs show the {100 * p:g} % quantile only at "
-                f"{100 * (1 - p**n):.3g} % confidence: at least {need} runs, all passing, needed"
+                f"{100 * (1 - p**n):.3g} % confidence: {need} runs in total, all passing, "
+                f"show it"
             )
-            claim += (
-                f", less than {100 * p:g} %; {need} runs, all passing, would show {100 * p:g} %"
-            )
+            claim += f", less than {100 * p:g} %"
     return Verdict(
         req.id,
         verdict,
@@ -457,20 +463,18 @@ def _quantile(req: Requirement, values: np.ndarray, common: dict[str, int]) -> V
     else:
         verdict, value = UNDECIDED, upper
         if r_up is None:
-            details["runs_to_decide"] = details["runs_needed_for_max"]
             reason = (
                 f"too few runs: a {conf} upper bound of the {name} needs at least "
                 f"{details['runs_needed_for_max']} runs, got {n}"
             )
             claim = (
                 f"{n} runs bound the {name} from above at {conf} confidence by nothing: "
-                f"that {pct} of runs meet {lim} is not shown (at least "
-                f"{details['runs_needed_for_max']} runs, all passing, would show it)"
+                f"that {pct} of runs meet {lim} is not shown"
             )
         else:
             reason = (
                 f"the {conf} confidence interval of the {name}, [{_fmt(lower, unit)}, "
-                f"{_fmt(upper, unit)}], contains the bound {lim}: more runs needed"
+                f"{_fmt(upper, unit)}], contains the bound {lim}"
             )
             claim = (
                 f"with {conf} confidence the {name} lies in [{_fmt(lower, unit)}, "
