@@ -49,13 +49,18 @@ FS = 100.0
 DT = 1.0 / FS
 N_SAMPLES = 2**15  # 328 s at 100 Hz
 LEVELS = {"white": 1e-3, "bias_instability": 1.5e-3, "random_walk": 4e-4}  # N, B, K [SI]
+#: A random walk five times stronger: resolved (an interval above zero) in every record,
+#: where the weaker one gets an upper bound only in most.
+STRONG_WALK = {**LEVELS, "random_walk": 2e-3}
 INDEX = {"quantization": 0, "white": 1, "bias_instability": 2, "random_walk": 3}
 
 
-def allantools_record(seed: int, quantization: float = 0.0) -> np.ndarray:
+def allantools_record(
+    seed: int, quantization: float = 0.0, levels: dict[str, float] = LEVELS
+) -> np.ndarray:
     """Rate samples with the known levels, made by allantools' generators alone."""
     np.random.seed(seed)  # allantools draws from numpy's global generator
-    white, b, k = LEVELS["white"], LEVELS["bias_instability"], LEVELS["random_walk"]
+    white, b, k = levels["white"], levels["bias_instability"], levels["random_walk"]
     y = noise.white(N_SAMPLES, b0=2.0 * white**2, fs=FS)
     y += noise.brown(N_SAMPLES, b_minus2=k**2 / (2.0 * math.pi**2), fs=FS)
     flicker = allantools.Noise(N_SAMPLES + 1, b**2 * DT**2, -3)
@@ -82,12 +87,13 @@ def needed(n: int, level: float = 0.95) -> int:
     return math.ceil(n * level - 3.0 * math.sqrt(n * level * (1.0 - level)))
 
 
-def _coverage(seeds: range, boot: int) -> dict[str, int]:
-    hits = dict.fromkeys(LEVELS, 0)
+def _coverage(seeds: range, boot: int, levels: dict[str, float] = LEVELS) -> dict[str, int]:
+    hits = dict.fromkeys(levels, 0)
     for seed in seeds:
-        fit = characterize_axis(allantools_record(seed), DT, boot=boot, seed=1000 + seed)
+        record = allantools_record(seed, levels=levels)
+        fit = characterize_axis(record, DT, boot=boot, seed=1000 + seed)
         assert fit.level == 0.95
-        for name, truth in LEVELS.items():
+        for name, truth in levels.items():
             j = INDEX[name]
             hits[name] += bool(fit.low[j] <= truth <= fit.high[j])
     return hits
@@ -100,8 +106,11 @@ def test_fitted_terms_fall_in_their_intervals_quick() -> None:
 
 
 @pytest.mark.slow
-def test_fitted_terms_fall_in_their_intervals_in_50_records() -> None:
-    hits = _coverage(range(50), boot=1000)
+@pytest.mark.parametrize("levels", [LEVELS, STRONG_WALK], ids=["weak_walk", "strong_walk"])
+def test_fitted_terms_fall_in_their_intervals_in_50_records(levels: dict[str, float]) -> None:
+    # measured (200 records each): 191, 192, 194 of 200 (weak walk: resolved in 35);
+    # 100 records of the strong walk: 93, 97, 96 of 100 (resolved in all)
+    hits = _coverage(range(50), boot=1000, levels=levels)
     assert needed(50) == 43
     assert all(h >= needed(50) for h in hits.values()), hits
 

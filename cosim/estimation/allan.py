@@ -253,8 +253,11 @@ class OctaveAllan:
         self.m = 2 ** np.arange(int(octaves))
         self.stride = np.maximum(1, self.m // self.span)
         self.lag = self.m // self.stride
-        #: Per octave: the kept grid points (newest last), shape (<= 2 lag + 1, channels).
-        self.ring = [np.zeros((1, self.channels)) for _ in self.m]
+        #: Per octave beyond ``span``: the kept grid points (newest last), shape
+        #: (channels, <= 2 span + 1); the octaves up to ``span`` share :attr:`fine`.
+        self.ring = [np.zeros((self.channels, 1)) for _ in self.m]
+        #: The last ``2 span`` values of theta at every sample (all of them while fewer).
+        self.fine = np.zeros((self.channels, 1))
         self.sumsq = np.zeros((len(self.m), self.channels))
         self.terms = np.zeros(len(self.m), dtype=np.int64)
         self.count = 0
@@ -280,19 +283,35 @@ class OctaveAllan:
             # a constant rate does not enter the Allan variance: removing the first chunk's
             # mean keeps theta small, so the second differences keep their precision
             self.offset = d.mean(axis=0)
-        theta = self.theta + np.cumsum(d - self.offset, axis=0)  # indices count+1 .. count+c
+        # theta at indices count+1 .. count+c, one contiguous row per channel
+        theta = np.ascontiguousarray((d - self.offset).T)
+        np.cumsum(theta, axis=1, out=theta)
+        theta += self.theta[:, None]
+        ext = np.concatenate([self.fine, theta], axis=1)
+        width, old = ext.shape[1], self.fine.shape[1]
         first = self.count + 1
         for j, (stride, lag) in enumerate(zip(self.stride, self.lag, strict=True)):
-            start = (-first) % stride  # first row whose global index is a multiple of stride
+            if stride == 1:  # every start index: second differences ending at a new sample
+                lo = max(old, 2 * lag)
+                if lo >= width:
+                    continue
+                second = ext[:, lo:] + ext[:, lo - 2 * lag : width - 2 * lag]
+                second -= ext[:, lo - lag : width - lag]
+                second -= ext[:, lo - lag : width - lag]
+                self.sumsq[j] += np.einsum("ij,ij->i", second, second)
+                self.terms[j] += width - lo
+                continue
+            start = (-first) % stride  # first sample whose global index is a multiple
             if start >= c:
                 continue
-            pts = np.concatenate([self.ring[j], theta[start::stride]])
-            if len(pts) > 2 * lag:
-                second = pts[2 * lag :] - 2.0 * pts[lag:-lag] + pts[: -2 * lag]
-                self.sumsq[j] += np.einsum("ij,ij->j", second, second)
-                self.terms[j] += len(second)
-            self.ring[j] = pts[-2 * lag :]
-        self.theta = theta[-1]
+            pts = np.concatenate([self.ring[j], theta[:, start::stride]], axis=1)
+            if pts.shape[1] > 2 * lag:
+                second = pts[:, 2 * lag :] - 2.0 * pts[:, lag:-lag] + pts[:, : -2 * lag]
+                self.sumsq[j] += np.einsum("ij,ij->i", second, second)
+                self.terms[j] += second.shape[1]
+            self.ring[j] = pts[:, -2 * lag :].copy()
+        self.fine = ext[:, -2 * self.span :].copy()
+        self.theta = theta[:, -1].copy()
         self.count += c
 
     def avar(self, dt: float, m_max: int | None = None) -> tuple[np.ndarray, np.ndarray]:

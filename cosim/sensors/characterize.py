@@ -183,12 +183,7 @@ def octave_factors(n: int) -> np.ndarray:
 
 
 def fit_noise(
-    tau: np.ndarray,
-    avar: np.ndarray,
-    m: np.ndarray,
-    n: int,
-    iterations: int = 6,
-    start: np.ndarray | None = None,
+    tau: np.ndarray, avar: np.ndarray, m: np.ndarray, n: int, iterations: int = 6
 ) -> tuple[np.ndarray, np.ndarray]:
     """Fit ``(Q^2, N^2, B^2, K^2)`` to Allan variances by non-negative weighted least squares.
 
@@ -203,10 +198,7 @@ def fit_noise(
     n : int
         Rate samples in the record.
     iterations : int, optional
-        Re-weightings: the first weights use the measured variances (or ``start``), the
-        next the model's.
-    start : ndarray, shape (4,), optional
-        Coefficients to take the first weights and noise types from.
+        Re-weightings: the first weights use the measured variances, the next the model's.
 
     Returns
     -------
@@ -217,8 +209,8 @@ def fit_noise(
     """
     a = design(tau)
     avar = np.asarray(avar, dtype=float)
-    c = np.zeros(4) if start is None else np.asarray(start, dtype=float)
-    model = avar.copy() if start is None else a @ c
+    c = np.zeros(4)
+    model = avar.copy()
     edfs = np.ones(len(tau))
     for _ in range(iterations):
         parts = a * c if c.any() else np.tile(model[:, None] / 4.0, (1, 4))
@@ -411,8 +403,9 @@ def intervals(
     """Confidence intervals of the fitted terms: a bootstrap of the Allan variances alone.
 
     ``boot`` sets of Allan variances ``avar_model(tau) chi2(edf) / edf`` (correlated across
-    ``tau``, :func:`octave_correlation`) are refitted (:func:`fit_noise`, started from
-    ``c``); see the module docstring for the pivot and the unresolved terms.
+    ``tau``, :func:`octave_correlation`) are refitted by the weighted least squares of
+    :func:`fit_noise` with the fitted model's weights; see the module docstring for the
+    pivot and the unresolved terms.
 
     Parameters
     ----------
@@ -445,7 +438,12 @@ def intervals(
     lower = np.linalg.cholesky(octave_correlation(np.argmax(parts, axis=1)))
     u = norm.cdf(rng.standard_normal((boot, len(tau))) @ lower.T)
     draws = model * chi2.ppf(u, edfs) / edfs
-    refits = np.sqrt(np.array([fit_noise(tau, d, m, n, iterations=3, start=c)[0] for d in draws]))
+    # each refit is the fit's weighted least squares with the weights of the fitted model
+    # (the fit's last iteration): the weights are the same for every draw
+    w = np.sqrt(edfs / 2.0) / np.maximum(model, 1e-300)
+    weighted = design(tau) * w[:, None]
+    scale = np.abs(weighted).max(axis=0)
+    refits = np.sqrt(np.array([nnls(weighted / scale, d * w)[0] for d in draws]) / scale)
     value = np.sqrt(c)
     low, high = value.copy(), value.copy()
     a = (1.0 - level) / 2.0

@@ -27,6 +27,7 @@ counting zero (per-axis values and upper bounds in the json).
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from dataclasses import dataclass
@@ -35,7 +36,6 @@ from typing import Any
 
 import numpy as np
 
-from cosim.blocks import file_sha256
 from cosim.estimation.allan import OctaveAllan
 from cosim.sensors.characterize import (
     TERMS,
@@ -221,7 +221,7 @@ def characterize_log(
         name: fit_axis(m, avar[:, i], n, dt, boot=boot, level=level, seed=seed + AXES.index(name))
         for i, name in enumerate(names)
     }
-    result = Characterization(Path(path), file_sha256(path), n, dt, axes, GRADE0, 0.0)
+    result = Characterization(Path(path), stream_sha256(Path(path)), n, dt, axes, GRADE0, 0.0)
     gyro, acc = ("gyro" in result.triads), ("acc" in result.triads)
     figures = {
         "gyro_bi": result.rms("gyro", 2) if gyro else None,
@@ -237,6 +237,23 @@ def characterize_log(
 
 
 GRADE0 = Grade("", 0.0, 0.0, 0.0, 0.0, "")
+
+
+def stream_sha256(path: Path) -> str:
+    """SHA-256 of a file read in blocks (a 24-hour log is not held in memory).
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+
+    Returns
+    -------
+    str
+        64 lower-case hex digits, as :func:`cosim.blocks.file_sha256` gives them.
+    """
+    with path.open("rb") as f:
+        return hashlib.file_digest(f, "sha256").hexdigest()
 
 
 def _fmt(value: float) -> str:
