@@ -6,8 +6,10 @@ channel, 1 GB), each channel the sum of white rate noise, flicker (bias instabil
 rate random walk of known levels (:data:`LEVELS`, drawn by
 :func:`cosim.sensors.characterize.simulate`), then, in the same run:
 
-* ``ins-cosim characterize LOG --out DIR`` in a child process: its wall time and its
-  peak resident memory (the child's ``ru_maxrss``, from ``os.wait4``);
+* ``ins-cosim characterize LOG --out DIR`` in a child process: its wall time (the
+  interpreter's start and imports included) and its peak resident memory (``VmHWM`` of
+  its own address space, which it reads from ``/proc/self/status`` as it ends: a child's
+  ``ru_maxrss`` would count the parent's pages at the fork);
 * allantools ``oadev`` alone on the same six channels at the same octave averaging
   times, in another child process (the channels read before the timing, which covers the
   ``oadev`` calls only), before and after the command; the faster of the two is kept.
@@ -33,7 +35,7 @@ from typing import Any
 
 import numpy as np
 
-from benchmarks.timing import load_note
+from benchmarks.timing import ROOT, load_note
 
 HOURS = 24.0
 RATE = 200.0
@@ -111,19 +113,35 @@ with h5py.File(path, "r") as f:
 print(json.dumps({"oadev": total}))
 """
 
+_CHARACTERIZE = """
+import json, sys
+from cosim.cli import main
+try:
+    main(["characterize", *sys.argv[1:]], standalone_mode=False)
+finally:
+    status = open("/proc/self/status").read()
+    hwm = int(status.split("VmHWM:")[1].split()[0]) * 1024
+    print(json.dumps({"vmhwm": hwm}))
+"""
 
-def _run_measured(cmd: list[str]) -> tuple[float, int, str]:
-    """Run a child process: its wall time [s], its own peak RSS (``os.wait4``) [bytes], stdout."""
+_WRITE = """
+import sys
+from pathlib import Path
+from benchmarks.bench_characterize_slow import write_log
+print(write_log(Path(sys.argv[1]), float(sys.argv[2])))
+"""
+
+
+def _run(code: str, *args: str) -> tuple[float, str]:
+    """Run ``python -c code args`` from the repository: its wall time [s] and stdout."""
     start = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
-    out = proc.stdout.read() if proc.stdout else b""
-    err = proc.stderr.read() if proc.stderr else b""
-    _, status, usage = os.wait4(proc.pid, 0)
+    proc = subprocess.run(
+        [sys.executable, "-c", code, *args], cwd=ROOT, capture_output=True, text=True
+    )
     wall = time.perf_counter() - start
-    proc.returncode = os.waitstatus_to_exitcode(status)
     if proc.returncode:
-        raise RuntimeError(f"{' '.join(cmd[:3])} ... failed: {err.decode().strip()[-400:]}")
-    return wall, usage.ru_maxrss * 1024, out.decode()
+        raise RuntimeError(f"child process failed: {proc.stderr.strip()[-400:]}")
+    return wall, proc.stdout
 
 
 def coverage(doc: dict[str, Any], dt: float) -> tuple[int, int, list[str]]:
@@ -177,18 +195,14 @@ def measure(hours: float = HOURS) -> dict[str, Any]:
     """
     name = f"characterize a {hours:g} h 200 Hz 6-channel log: wall time / allantools oadev"
     before = load_note()
-    exe = str(Path(sys.executable).with_name("ins-cosim"))
     with tempfile.TemporaryDirectory(prefix="ins_cosim_bench_char_") as tmp:
         log = Path(tmp) / "static_24h.h5"
-        start = time.perf_counter()
-        n = write_log(log, hours)
-        written = time.perf_counter() - start
-        oadev_cmd = [sys.executable, "-c", _OADEV, str(log), str(RATE)]
-        t1 = json.loads(_run_measured(oadev_cmd)[2])["oadev"]
-        wall, rss, _ = _run_measured(
-            [exe, "characterize", str(log), "--out", str(Path(tmp) / "char")]
-        )
-        t2 = json.loads(_run_measured(oadev_cmd)[2])["oadev"]
+        written, out = _run(_WRITE, str(log), str(hours))  # its memory is not ours
+        n = int(out.split()[-1])
+        t1 = json.loads(_run(_OADEV, str(log), str(RATE))[1])["oadev"]
+        wall, out = _run(_CHARACTERIZE, str(log), "--out", str(Path(tmp) / "char"))
+        rss = json.loads(out.strip().splitlines()[-1])["vmhwm"]
+        t2 = json.loads(_run(_OADEV, str(log), str(RATE))[1])["oadev"]
         doc = json.loads((Path(tmp) / "char" / "characterization.json").read_text())
     oadev = min(t1, t2)
     ratio = wall / oadev
