@@ -28,9 +28,9 @@ Noise terms (IEEE Std 952-1997, Annex C; IEEE Std 1293-2018 for accelerometers)
 Uncertainties
     A parametric bootstrap in the Allan domain (:func:`intervals`): no log is simulated.
     Each Allan variance estimate is distributed as ``avar chi2(edf) / edf`` with Greenhall's
-    equivalent degrees of freedom ``edf`` (the chi-square model of NIST SP 1065, section
-    5.3); ``boot`` sets of Allan variances are drawn from the fitted model that way and
-    refitted like the log's. The interval for each parameter ``p`` is ``[p / r_hi, p /
+    equivalent degrees of freedom ``edf`` (the chi-square model of NIST SP 1065);
+    ``boot`` sets of Allan variances are drawn from the fitted model that way and refitted
+    by the fit's weighted least squares, with the fitted model's weights. The interval for each parameter ``p`` is ``[p / r_hi, p /
     r_lo]`` with ``r_lo``, ``r_hi`` the quantiles of the ratio ``p* / p`` over the refits
     (a scale pivot). The estimates of neighbouring octaves share data and are correlated
     (0.5 to 0.9 one octave apart, by noise type): the draws are joined by a Gaussian
@@ -495,7 +495,7 @@ def fit_axis(
     avar = np.asarray(avar, dtype=float)
     c, edfs = fit_noise(tau, avar, m, n)
     adev = np.sqrt(avar)
-    # chi-square band of adev (NIST SP 1065 eq. 5.3 form), level BAND
+    # chi-square band of adev, level BAND (allantools confidence_interval's formula)
     lo_q, hi_q = chi2.ppf([(1.0 + BAND) / 2.0, (1.0 - BAND) / 2.0], edfs[:, None]).T
     band = np.column_stack([adev * np.sqrt(edfs / lo_q), adev * np.sqrt(edfs / hi_q)])
     value = np.sqrt(c)
