@@ -292,3 +292,39 @@ def test_a_log_without_sensor_columns_is_refused_in_one_line(tmp_path: Path) -> 
     assert res.output.count("\n") == 1, res.output
     assert str(log) in res.output and "no sensor column" in res.output
     assert "gyro_x, gyro_y, gyro_z, acc_x, acc_y, acc_z" in res.output
+
+
+def _h5_log(path: Path, n: int) -> Path:
+    import h5py
+
+    rng = np.random.default_rng(n)
+    with h5py.File(path, "w") as f:
+        f.create_dataset("time", data=np.arange(1, n + 1) * DT).attrs["unit"] = "s"
+        for name in ("gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z"):
+            unit = "rad/s" if name.startswith("gyro") else "m/s2"
+            f.create_dataset(name, data=1e-3 * rng.standard_normal(n)).attrs["unit"] = unit
+    return path
+
+
+def test_the_memory_of_a_characterisation_does_not_grow_with_the_log(tmp_path: Path) -> None:
+    """Peak memory (tracemalloc: numpy's arrays) of characterize_log with 8192-row chunks.
+
+    A log of 2^19 samples x 7 columns is 29 MB of float64, a chunk 0.46 MB; the
+    characterisation may hold a few working copies of the chunk (at most 16 of them,
+    a quarter of the log) and not 1.25 times what a log eight times shorter takes: the
+    bound is the read buffer, not the log.
+    """
+    import tracemalloc
+
+    from cosim.sensors.report import characterize_log
+
+    peaks = []
+    for n in (2**16, 2**19):
+        log = _h5_log(tmp_path / f"log_{n}.h5", n)
+        tracemalloc.start()
+        result = characterize_log(log, boot=20, chunk_rows=8192)
+        peaks.append(tracemalloc.get_traced_memory()[1])
+        tracemalloc.stop()
+        assert result.samples == n and list(result.axes)[0] == "gyro_x"
+    assert peaks[1] < 16 * 8192 * 7 * 8, peaks
+    assert peaks[1] < 1.25 * peaks[0], peaks

@@ -30,17 +30,17 @@ Uncertainties
     Each Allan variance estimate is distributed as ``avar chi2(edf) / edf`` with Greenhall's
     equivalent degrees of freedom ``edf`` (the chi-square model of NIST SP 1065);
     ``boot`` sets of Allan variances are drawn from the fitted model that way and refitted
-    by the fit's weighted least squares, with the fitted model's weights. The interval for each parameter ``p`` is ``[p / r_hi, p /
-    r_lo]`` with ``r_lo``, ``r_hi`` the quantiles of the ratio ``p* / p`` over the refits
-    (a scale pivot). The estimates of neighbouring octaves share data and are correlated
-    (0.5 to 0.9 one octave apart, by noise type): the draws are joined by a Gaussian
-    copula with the correlations of :data:`OCTAVE_CORRELATION`, so that a term resolved
-    over several octaves does not get the narrow interval of independent points. A term
-    fitted is *not resolved* when more than ``(1 - level) / 2`` of the refits give it
-    zero: its interval is then ``[0, 2 q]`` with ``q`` the upper quantile of ``p*`` (an
-    upper bound only, made conservative by the factor 2). The level is 95 % by default.
-    The cost is that of ``boot`` least-squares fits of some 20 points, whatever the
-    log's length.
+    by the fit's weighted least squares, with the fitted model's weights. The interval for
+    each parameter ``p`` is ``[p / r_hi, p / r_lo]`` with ``r_lo``, ``r_hi`` the quantiles
+    of the ratio ``p* / p`` over the refits (a scale pivot). The estimates of neighbouring
+    octaves share data and are correlated (0.5 to 0.9 one octave apart, by noise type):
+    the draws are joined by a Gaussian copula with the correlations of
+    :data:`OCTAVE_CORRELATION`, so that a term resolved over several octaves does not get
+    the narrow interval of independent points. A term fitted is *not resolved* when more
+    than ``(1 - level) / 2`` of the refits give it zero: its interval is then ``[0, 2 q]``
+    with ``q`` the upper quantile of ``p*`` (an upper bound only, made conservative by the
+    factor 2). The level is 95 % by default. The cost is that of ``boot`` least-squares
+    fits of some 20 points, whatever the log's length.
 
 Parameters of our IMU model
     ``gyro_arw`` / ``accel_vrw`` = N, ``gyro_rrw`` / ``accel_rrw`` = K, ``*_lsb`` =
