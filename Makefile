@@ -54,9 +54,11 @@ test-slow: fmus
 bench: fmus
 	$(PY) -m benchmarks
 
-# A 1000-run transfer-alignment campaign on 2 workers (minutes; not in bench's table).
+# A 1000-run transfer-alignment campaign on 2 workers, and the characterisation of a
+# generated 24-hour 200 Hz log (minutes each; not in bench's table).
 bench-slow: fmus
 	$(PY) -m benchmarks.bench_campaign_slow
+	$(PY) -m benchmarks.bench_characterize_slow
 
 lint: $(STAMP)
 	$(VENV)/bin/ruff check cosim models tests benchmarks

@@ -152,10 +152,11 @@ def parse_csv(
         truncated last line.
     """
     counts = [s.count(",") + 1 for s in block]
-    for k, (count, text) in enumerate(zip(counts, block, strict=True)):
-        complete = text.endswith("\n")
-        if count != n_fields or not text.strip():
-            _bad_line(file, int(lines[k]), text, count, n_fields, truncated=not complete)
+    if counts.count(n_fields) != len(counts):  # the lines one by one only then (long logs)
+        for k, (count, text) in enumerate(zip(counts, block, strict=True)):
+            complete = text.endswith("\n")
+            if count != n_fields or not text.strip():
+                _bad_line(file, int(lines[k]), text, count, n_fields, truncated=not complete)
     try:
         data = np.loadtxt(block, delimiter=",", usecols=index, ndmin=2, dtype=float)
     except ValueError:

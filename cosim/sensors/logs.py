@@ -168,6 +168,9 @@ class Columns:
         True where the column is a rate (mean over the interval), False for increments.
     kinds : tuple of str
         The kind of each sensor column (``"increment"``, ``"rate"``, ``"state"``).
+    present : tuple of str
+        The layout's columns read, canonical names in layout order (all of them unless
+        the log was opened with ``partial``).
     """
 
     index: tuple[int, ...]
@@ -176,6 +179,7 @@ class Columns:
     factor: np.ndarray
     rate: np.ndarray
     kinds: tuple[str, ...] = ()
+    present: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -249,7 +253,12 @@ class LogSummary:
 
 
 def parse_header(
-    names: list[str], file: str, where: str = "line 1", layout: Layout = IMU
+    names: list[str],
+    file: str,
+    where: str = "line 1",
+    layout: Layout = IMU,
+    *,
+    partial: bool = False,
 ) -> Columns:
     """Find the time and the layout's columns in a list of ``"name [unit]"`` headers.
 
@@ -263,6 +272,9 @@ def parse_header(
         Where the headers are (``"line 1"``).
     layout : Layout, optional
         The columns wanted (default :data:`IMU`).
+    partial : bool, optional
+        Read whichever of the layout's columns are present (at least one), e.g. a
+        gyro-only or a one-axis log; by default every one is required.
 
     Returns
     -------
@@ -278,11 +290,13 @@ def parse_header(
         m = _HEADER.match(str(raw))
         if m:
             parsed.setdefault(m.group(1).strip().lower(), (i, str(raw).strip(), m.group(2)))
-    index, shown, units = [], [], []
-    for key in ("time", *layout.columns):
+    index, shown, units, slots = [], [], [], []
+    for slot, key in enumerate(("time", *layout.columns)):
         prefix, sep, rest = key.partition("_")
         spellings = [key] + [f"{a}{sep}{rest}" for a in layout.aliases.get(prefix, ())]
         found = next((parsed[s] for s in spellings if s in parsed), None)
+        if found is None and partial and slot > 0:
+            continue
         if found is None:
             tip = did_you_mean(key, parsed)
             raise LogColumnError(
@@ -294,7 +308,7 @@ def parse_header(
             )
         i, text, unit = found
         if unit is None or not unit.strip():
-            refs = ["s"] if key == "time" else list(layout.kinds[len(index) - 1].values())
+            refs = ["s"] if key == "time" else list(layout.kinds[slot - 1].values())
             examples = " or ".join(f"'{text} [{r}]'" for r in refs)
             raise LogColumnError(
                 file,
@@ -305,6 +319,15 @@ def parse_header(
         index.append(i)
         shown.append(text)
         units.append(unit.strip())
+        slots.append(slot - 1)
+    if len(index) == 1:
+        raise LogColumnError(
+            file,
+            f"no sensor column (columns found: {', '.join(map(str, names))})",
+            f"name at least one of {', '.join(layout.columns)} with its unit, "
+            f"e.g. '{layout.example}'",
+            where,
+        )
     try:
         time_unit = parse_unit(units[0])
     except UnitError as exc:
@@ -315,8 +338,8 @@ def parse_header(
         raise LogColumnError(
             file, f"column '{shown[0]}' has unit '{units[0]}', not a time", "use s, ms or us", where
         )
-    k = len(layout.columns)
-    factor = np.empty(k)
+    slots = slots[1:]
+    factor = np.empty(len(slots))
     kinds: list[str] = []
     for j, (text, unit) in enumerate(zip(shown[1:], units[1:], strict=True)):
         try:
@@ -328,7 +351,7 @@ def parse_header(
                 "use a unit the unit system knows (README, 'Scenario files')",
                 where,
             ) from exc
-        allowed = layout.kinds[j]
+        allowed = layout.kinds[slots[j]]
         for kind, ref in allowed.items():
             if u.compatible(parse_unit(ref)) and not u.offset:
                 factor[j] = u.factor / parse_unit(ref).factor
@@ -347,17 +370,22 @@ def parse_header(
                 where,
             )
     for group, lo, hi in layout.groups:
-        if len(set(kinds[lo:hi])) > 1:
+        own = [j for j, slot in enumerate(slots) if lo <= slot < hi]
+        mixed = {kinds[j] for j in own}
+        if len(mixed) > 1:
             raise LogColumnError(
                 file,
                 f"the {group} columns mix "
-                f"{' and '.join(f'{kd}s' for kd in sorted(set(kinds[lo:hi]), reverse=True))} "
-                f"({', '.join(shown[1 + lo : 1 + hi])})",
+                f"{' and '.join(f'{kd}s' for kd in sorted(mixed, reverse=True))} "
+                f"({', '.join(shown[1 + j] for j in own)})",
                 "give the three axes of a triad the same kind of unit",
                 where,
             )
     rate = np.array([kd == "rate" for kd in kinds], dtype=bool)
-    return Columns(tuple(index), tuple(shown), time_unit.factor, factor, rate, tuple(kinds))
+    present = tuple(layout.columns[slot] for slot in slots)
+    return Columns(
+        tuple(index), tuple(shown), time_unit.factor, factor, rate, tuple(kinds), present
+    )
 
 
 # ----------------------------------------------------------------------------- the log
@@ -380,6 +408,9 @@ class SensorLog:
         Rows read at a time (the memory bound).
     group : str, optional
         HDF5 group holding the datasets (default: the file root).
+    partial : bool, optional
+        Accept any non-empty subset of the layout's columns (:func:`parse_header`); the
+        chunks then hold those columns only (``columns.present``).
 
     Raises
     ------
@@ -398,6 +429,7 @@ class SensorLog:
         duplicates: str = "error",
         chunk_rows: int = CHUNK_ROWS,
         group: str | None = None,
+        partial: bool = False,
     ) -> None:
         self.path = Path(path)
         self.file = str(path)
@@ -441,7 +473,11 @@ class SensorLog:
         self.names = names
         self.layout = layout
         self.columns = parse_header(
-            names, self.file, "line 1" if self.format == "csv" else "column names", layout
+            names,
+            self.file,
+            "line 1" if self.format == "csv" else "column names",
+            layout,
+            partial=partial,
         )
 
     # --------------------------------------------------------------- raw values
@@ -618,7 +654,7 @@ class SensorLog:
         self._dropped = 0
         n = 0
         t_first = t_last = math.nan
-        sums = np.zeros(len(self.layout.columns))
+        sums = np.zeros(len(self.columns.factor))
         for chunk in self.chunks():
             if n == 0:
                 t_first = float(chunk.time[0])
@@ -641,7 +677,8 @@ class ImuLog(SensorLog):
     path : str or Path
         The log.
     **options
-        ``sample_rate``, ``jitter``, ``duplicates``, ``chunk_rows``, ``group``.
+        ``sample_rate``, ``jitter``, ``duplicates``, ``chunk_rows``, ``group``,
+        ``partial``.
     """
 
     def __init__(self, path: str | Path, **options: Any) -> None:

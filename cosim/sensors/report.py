@@ -16,14 +16,18 @@ file                     content
 
 The log must be static (the sensor at rest, no rotation other than the Earth's): the
 mean (gravity, Earth rate, fixed bias) does not enter the Allan deviation, but motion
-would. The StrapdownImu takes one value per triad: the parameter block gives the root
-mean square over the three axes of each term, an axis where the term is not resolved
-(its confidence interval reaches zero) counting zero (per-axis values and upper bounds
-in the json).
+would. The log is read once, chunk by chunk (:class:`cosim.estimation.allan.OctaveAllan`):
+the memory is the read buffer's, whatever the log's length. Any non-empty subset of the
+six sensor columns is analysed (a gyro-only log, one axis), each named by its header; the
+outputs name only the axes and triads fitted. The StrapdownImu takes one value per
+triad: the parameter block gives the root mean square over the triad's fitted axes of
+each term, an axis where the term is not resolved (its confidence interval reaches zero)
+counting zero (per-axis values and upper bounds in the json).
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 from dataclasses import dataclass
@@ -32,15 +36,16 @@ from typing import Any
 
 import numpy as np
 
-from cosim.blocks import file_sha256
+from cosim.estimation.allan import OctaveAllan
 from cosim.sensors.characterize import (
     TERMS,
     AxisFit,
     Grade,
-    characterize_axis,
     closest_grade,
+    fit_axis,
 )
-from cosim.sensors.logs import JITTER, ImuLog
+from cosim.sensors.formats import LogValueError
+from cosim.sensors.logs import CHUNK_ROWS, JITTER, ImuLog
 from cosim.units import conversion_factor
 
 AXES = ("gyro_x", "gyro_y", "gyro_z", "acc_x", "acc_y", "acc_z")
@@ -75,9 +80,9 @@ class Characterization:
     dt : float
         Sample interval [s].
     axes : dict of str to AxisFit
-        Per axis (:data:`AXES`), SI units.
+        Per axis fitted (those of :data:`AXES` the log holds, in that order), SI units.
     grade : Grade
-        The closest preset.
+        The closest preset (:data:`GRADE0`, nameless, when no figure could be compared).
     distance : float
         Its distance [decades].
     """
@@ -90,8 +95,13 @@ class Characterization:
     grade: Grade
     distance: float
 
+    @property
+    def triads(self) -> tuple[str, ...]:
+        """The triads with at least one axis fitted: ``"gyro"``, ``"acc"``, in that order."""
+        return tuple(p for p in ("gyro", "acc") if self.triad(p))
+
     def triad(self, prefix: str) -> list[AxisFit]:
-        """The three axes of ``"gyro"`` or ``"acc"``.
+        """The fitted axes of ``"gyro"`` or ``"acc"`` (x, y, z order; empty if none).
 
         Parameters
         ----------
@@ -102,10 +112,10 @@ class Characterization:
         -------
         list of AxisFit
         """
-        return [self.axes[f"{prefix}_{a}"] for a in "xyz"]
+        return [self.axes[f"{prefix}_{a}"] for a in "xyz" if f"{prefix}_{a}" in self.axes]
 
     def rms(self, prefix: str, j: int) -> float:
-        """Root mean square over the triad's axes of term ``j`` where resolved (SI).
+        """Root mean square over the triad's fitted axes of term ``j`` where resolved (SI).
 
         An axis on which the term is not resolved (its interval reaches 0) counts 0.
 
@@ -120,7 +130,8 @@ class Characterization:
         -------
         float
         """
-        return math.sqrt(sum(f.resolved[j] ** 2 for f in self.triad(prefix)) / 3.0)
+        fits = self.triad(prefix)
+        return math.sqrt(sum(f.resolved[j] ** 2 for f in fits) / len(fits))
 
     def gauss_markov(self, prefix: str) -> tuple[float, float]:
         """Triad's Gauss-Markov bias: RMS sigma, mean correlation time (axes with flicker).
@@ -138,7 +149,7 @@ class Characterization:
             [s].
         """
         pairs = [f.gauss_markov() for f in self.triad(prefix)]
-        sigma = math.sqrt(sum(s * s for s, _ in pairs) / 3.0)
+        sigma = math.sqrt(sum(s * s for s, _ in pairs) / len(pairs))
         taus = [t for s, t in pairs if s > 0.0]
         return sigma, (float(np.mean(taus)) if taus else 3600.0)
 
@@ -149,16 +160,18 @@ def characterize_log(
     sample_rate: float | None = None,
     jitter: float = JITTER,
     duplicates: str = "error",
-    boot: int = 100,
+    boot: int = 1000,
     level: float = 0.95,
     seed: int = 0,
+    chunk_rows: int = CHUNK_ROWS,
 ) -> Characterization:
-    """Allan analysis of every axis of a static IMU log.
+    """Allan analysis of every sensor axis a static IMU log holds, in one streaming pass.
 
     Parameters
     ----------
     path : str or Path
-        The log (:mod:`cosim.sensors.logs`; every check applies).
+        The log (:mod:`cosim.sensors.logs`; every check applies), with any non-empty
+        subset of the six sensor columns.
     sample_rate : float, optional
         Nominal sample rate [Hz]; default from the timestamps.
     jitter : float, optional
@@ -166,11 +179,13 @@ def characterize_log(
     duplicates : {"error", "drop"}, optional
         Duplicate-row policy.
     boot : int, optional
-        Bootstrap records per axis for the confidence intervals.
+        Bootstrap refits of the Allan variances per axis for the confidence intervals.
     level : float, optional
         Confidence level.
     seed : int, optional
-        Bootstrap seed (axis ``i`` uses ``seed + i``).
+        Bootstrap seed (axis ``AXES[i]`` uses ``seed + i``).
+    chunk_rows : int, optional
+        Rows read at a time: with the analysis's own ~1 MB, the memory bound.
 
     Returns
     -------
@@ -179,25 +194,66 @@ def characterize_log(
     Raises
     ------
     LogError
-        The log fails a check.
+        The log fails a check, has no sensor column, or has fewer than 16 samples.
     """
-    log = ImuLog(path, sample_rate=sample_rate, jitter=jitter, duplicates=duplicates)
-    parts = [c.values for c in log.chunks()]  # the analysis needs it all
-    inc = np.vstack(parts)
-    dt = 1.0 / log.sample_rate
-    rate = inc / dt
-    axes = {
-        name: characterize_axis(rate[:, i], dt, boot=boot, level=level, seed=seed + i)
-        for i, name in enumerate(AXES)
-    }
-    result = Characterization(Path(path), file_sha256(path), len(inc), dt, axes, GRADE0, 0.0)
-    result.grade, result.distance = closest_grade(
-        result.rms("gyro", 2), result.rms("gyro", 1), result.rms("acc", 2), result.rms("acc", 1)
+    log = ImuLog(
+        path,
+        sample_rate=sample_rate,
+        jitter=jitter,
+        duplicates=duplicates,
+        chunk_rows=chunk_rows,
+        partial=True,
     )
+    names = log.columns.present
+    allan = OctaveAllan(len(names))
+    for chunk in log.chunks():
+        allan.update(chunk.values)
+    n = allan.count
+    if n < 16:
+        raise LogValueError(
+            str(path),
+            f"{n} samples, too few for an Allan analysis",
+            "record at least 16 samples (hours for the bias instability and random walk)",
+        )
+    dt = 1.0 / log.sample_rate
+    m, avar = allan.avar(dt)
+    axes = {
+        name: fit_axis(m, avar[:, i], n, dt, boot=boot, level=level, seed=seed + AXES.index(name))
+        for i, name in enumerate(names)
+    }
+    result = Characterization(Path(path), stream_sha256(Path(path)), n, dt, axes, GRADE0, 0.0)
+    gyro, acc = ("gyro" in result.triads), ("acc" in result.triads)
+    figures = {
+        "gyro_bi": result.rms("gyro", 2) if gyro else None,
+        "gyro_arw": result.rms("gyro", 1) if gyro else None,
+        "accel_bi": result.rms("acc", 2) if acc else None,
+        "accel_vrw": result.rms("acc", 1) if acc else None,
+    }
+    try:
+        result.grade, result.distance = closest_grade(**figures)
+    except ValueError:  # no figure > 0: nothing to compare
+        pass
     return result
 
 
 GRADE0 = Grade("", 0.0, 0.0, 0.0, 0.0, "")
+
+
+def stream_sha256(path: Path) -> str:
+    """SHA-256 of a file read in blocks (a 24-hour log is not held in memory).
+
+    Parameters
+    ----------
+    path : Path
+        The file.
+
+    Returns
+    -------
+    str
+        64 lower-case hex digits, as :func:`cosim.blocks.file_sha256` gives them.
+    """
+    with path.open("rb") as f:
+        return hashlib.file_digest(f, "sha256").hexdigest()
 
 
 def _fmt(value: float) -> str:
@@ -218,7 +274,7 @@ def parameter_block(result: Characterization) -> str:
         TOML text (comments first), ready to paste.
     """
     values: dict[str, str] = {"grade": "0"}
-    for prefix in ("gyro", "acc"):
+    for prefix in result.triads:
         names = PARAMETER[prefix]
         units = DISPLAY[prefix]["terms"]
         si = _SI[prefix]
@@ -232,16 +288,29 @@ def parameter_block(result: Characterization) -> str:
         k = result.rms(prefix, 3) * conversion_factor(si[3], units[3])
         values[names[3]] = f'"{_fmt(k)} {units[3]}"'
     body = ", ".join(f"{k} = {v}" for k, v in values.items())
+    fitted = ", ".join(result.axes)
+    missing = [p for p in ("gyro", "acc") if p not in result.triads]
+    grade = (
+        f"{result.grade.name} ({result.distance:.2f} decades)"
+        if result.grade.name
+        else "none (no figure > 0 to compare)"
+    )
     lines = [
         f"# ins-cosim characterize {result.log.name} (sha256 {result.sha256[:12]}): "
         f"{result.samples} samples at {1.0 / result.dt:.6g} Hz "
         f"({result.samples * result.dt:.6g} s)",
-        "# RMS over the three axes of each triad (0 where a term is not resolved: its upper "
+        f"# axes fitted: {fitted}"
+        + (
+            f" (no {' or '.join(missing)} column: the model keeps its defaults there)"
+            if missing
+            else ""
+        ),
+        "# RMS over the fitted axes of each triad (0 where a term is not resolved: its upper "
         "bound is in characterization.json);",
         "# bias instability as a first-order Gauss-Markov bias",
         "# (matches the flicker floor only around its minimum); turn-on bias, scale factor and",
         "# misalignment are not observable in one static log: set them from the data sheet.",
-        f"# closest grade preset: {result.grade.name} ({result.distance:.2f} decades)",
+        f"# closest grade preset: {grade}",
         "[blocks.imu]",
         'model = "StrapdownImu"',
         f"parameters = {{ {body} }}",
@@ -253,7 +322,9 @@ def _triad_json(result: Characterization, prefix: str) -> dict[str, Any]:
     out: dict[str, Any] = {}
     units = DISPLAY[prefix]["terms"]
     for axis in "xyz":
-        fit = result.axes[f"{prefix}_{axis}"]
+        fit = result.axes.get(f"{prefix}_{axis}")
+        if fit is None:
+            continue
         terms = {}
         for j, term in enumerate(TERMS):
             f = conversion_factor(_SI[prefix][j], units[j])
@@ -263,6 +334,8 @@ def _triad_json(result: Characterization, prefix: str) -> dict[str, Any]:
                 "high": fit.high[j] * f,
                 "unit": units[j],
                 "value_si": fit.value[j],
+                "low_si": fit.low[j],
+                "high_si": fit.high[j],
                 "unit_si": _SI[prefix][j],
             }
         sigma, tau_c = fit.gauss_markov()
@@ -313,14 +386,17 @@ def write_outputs(result: Characterization, out_dir: str | Path) -> dict[str, Pa
         "sha256": result.sha256,
         "samples": result.samples,
         "sample_rate_hz": 1.0 / result.dt,
+        "axes_fitted": list(result.axes),
         "axes": {**_triad_json(result, "gyro"), **_triad_json(result, "acc")},
         "closest_grade": {
             "name": result.grade.name,
             "distance_decades": result.distance,
             "source": result.grade.source,
         },
-        "method": "overlapping Allan deviation (allantools), IEEE Std 952 / 1293 terms fitted "
-        "by non-negative weighted least squares, parametric-bootstrap intervals",
+        "method": "overlapping Allan deviation at octave averaging times, streamed "
+        "(cosim.estimation.allan.OctaveAllan), IEEE Std 952 / 1293 terms fitted by "
+        "non-negative weighted least squares, intervals from a parametric bootstrap of the "
+        "Allan variances with Greenhall's chi-square equivalent degrees of freedom",
     }
     paths["json"].write_text(json.dumps(doc, indent=2) + "\n")
     paths["toml"].write_text(parameter_block(result))
@@ -349,30 +425,34 @@ def plot(result: Characterization, path: Path) -> Path:
 
     from cosim.sensors.characterize import design
 
-    fig, axes = plt.subplots(1, 2, figsize=(12, 5))
+    triads = result.triads
+    fig, axes = plt.subplots(1, len(triads), figsize=(6 * len(triads), 5), squeeze=False)
     labels = ("quantisation", "white (ARW/VRW)", "bias instability", "random walk")
-    for ax, prefix in zip(axes, ("gyro", "acc"), strict=True):
+    for ax, prefix in zip(axes[0], triads, strict=True):
         unit = DISPLAY[prefix]["adev"]
         f = conversion_factor("rad/s" if prefix == "gyro" else "m/s2", unit)
+        first = result.triad(prefix)[0]
         for axis, color in zip("xyz", ("C0", "C1", "C2"), strict=True):
-            fit = result.axes[f"{prefix}_{axis}"]
+            fit = result.axes.get(f"{prefix}_{axis}")
+            if fit is None:
+                continue
             ax.fill_between(fit.tau, fit.band[:, 0] * f, fit.band[:, 1] * f, color=color, alpha=0.2)
             ax.loglog(fit.tau, fit.adev * f, "o", ms=3, color=color, label=f"{prefix}_{axis}")
             grid = np.geomspace(fit.tau[0], fit.tau[-1], 200)
             ax.loglog(grid, fit.model(grid) * f, "-", color=color, lw=1)
             parts = design(grid) * fit.value**2
             for j, style in enumerate((":", "--", "-.", (0, (1, 3)))):
-                if fit.value[j] > 0.0 and axis == "x":
+                if fit.value[j] > 0.0 and fit is first:
                     ax.loglog(grid, np.sqrt(parts[:, j]) * f, ls=style, color="0.4", lw=0.8,
-                              label=f"{labels[j]} (x)")  # fmt: skip
-        low = min(float(np.min(result.axes[f"{prefix}_{a}"].band[:, 0])) for a in "xyz")
+                              label=f"{labels[j]} ({axis})")  # fmt: skip
+        low = min(float(np.min(fit.band[:, 0])) for fit in result.triad(prefix))
         ax.set_ylim(bottom=0.3 * low * f)  # the fitted terms, where they matter
         ax.set_xlabel("averaging time tau [s]")
         ax.set_ylabel(f"Allan deviation [{unit}]")
         ax.set_title(f"{prefix}: overlapping ADEV, 68 % band, fitted terms")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend(fontsize=7)
-    fig.suptitle(f"{result.log.name}: closest grade {result.grade.name}")
+    fig.suptitle(f"{result.log.name}: closest grade {result.grade.name or 'none'}")
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
