@@ -118,3 +118,26 @@ def test_a_campaign_on_one_worker_records_a_crashed_run_and_goes_on(
     assert "killed by signal SIGABRT (6)" in crashed.error
     assert "block 'bomb' was stepping from t = 1.23 s" in crashed.error
     assert crashed.t_end == 1.23
+
+
+def test_an_ssp_archive_with_a_foreign_fmu_runs_isolated(tmp_path: Path, bomb_fmu: Path) -> None:
+    """The FMUs of an .ssp archive are foreign too: its plain ``run`` keeps the rows."""
+    toml = tmp_path / "alone.toml"
+    toml.write_text(
+        '[master]\nstep = "10 ms"\nstop = "2 s"\n\n'
+        f'[blocks.bomb]\nfmu = "{bomb_fmu}"\nparameters = {{ abort_at = "0.5 s" }}\n'
+    )
+    archive = tmp_path / "alone.ssp"
+    res = subprocess.run(
+        [sys.executable, "-m", "cosim.cli", "export-ssp", str(toml), str(archive)],
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert res.returncode == 0, res.stderr
+    res = run_cli(tmp_path, archive, "--out", tmp_path / "out")
+    assert res.returncode == 4, (res.stdout, res.stderr)
+    error = res.stderr.strip().splitlines()[0]
+    assert "killed by signal SIGABRT (6)" in error and "block 'bomb'" in error
+    partial = RunResult.load(tmp_path / "out" / "results.csv")
+    assert len(partial.data) == 51 and partial.time[-1] == 0.5
