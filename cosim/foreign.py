@@ -26,6 +26,7 @@ from typing import Any
 from cosim import registry
 from cosim.archives import check_archive
 from cosim.blocks import class_identity
+from cosim.errors import FmuError
 
 __all__ = ["foreign_fmus", "is_ours"]
 
@@ -83,6 +84,12 @@ def foreign_fmus(scenario: Any, fmu_dir: str | Path | None = None) -> dict[str, 
     dict
         Block name -> FMU path, in the scenario's order (empty: every block is in-process
         or one of ours).
+
+    Raises
+    ------
+    ScenarioError
+        An FMU over the unpack limits (:func:`cosim.archives.check_archive`), naming the
+        block.
     """
     out: dict[str, str] = {}
     for spec in scenario.blocks.values():
@@ -92,6 +99,11 @@ def foreign_fmus(scenario: Any, fmu_dir: str | Path | None = None) -> dict[str, 
             path = (Path(fmu_dir) / f"{spec.source}.fmu").resolve()
         else:
             continue
-        if not is_ours(path):
+        try:
+            ours = is_ours(path)
+        except FmuError as exc:  # over the unpack limits: refused as building it would
+            key = f"blocks.{spec.name}.fmu"
+            raise scenario.error(f"block '{spec.name}': {exc}", key=key) from None
+        if not ours:
             out[spec.name] = str(path)
     return out
