@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from cosim import models  # noqa: F401  (imported before any FMU, so FMUs of ours reuse this copy)
+from cosim.archives import check_archive
 from cosim.errors import FmuError
 from cosim.units import name_disagreement
 from cosim.unpacked import drop_repeated_path_entries, unpacked_folders
@@ -463,6 +464,10 @@ class FmuHost(BlockHost):
         self.source = str(path)
         if not path.is_file():
             raise FmuError(f"block '{name}': FMU file '{path}' does not exist (run `make fmus`?)")
+        try:
+            check_archive(path)  # its unpacked size, before any member is read
+        except FmuError as exc:
+            raise FmuError(f"block '{name}': {exc}") from None
         try:
             md = read_model_description(str(path), validate=False)
         except Exception as exc:

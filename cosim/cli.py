@@ -167,13 +167,19 @@ def main() -> None:
 @click.option("--stop", type=str, default=None, help="Override master.stop, e.g. '10 s'.")
 @click.option("--plot/--no-plot", default=True, show_default=True, help="Write results.png.")
 @click.option(
-    "--isolate",
-    is_flag=True,
+    "--isolate/--no-isolate",
+    default=None,
     help="Run in a child process: an FMU that kills it (abort, a crash) leaves the results "
-    "recorded up to then, and a note naming the block, the time and the signal.",
+    "recorded up to then, and a note naming the block, the time and the signal. Default: "
+    "isolated when an FMU was not built by ins-cosim (docs/foreign_fmus.md).",
 )
 def run(
-    scenario: Path, out: Path, fmu_dir: Path | None, stop: str | None, plot: bool, isolate: bool
+    scenario: Path,
+    out: Path,
+    fmu_dir: Path | None,
+    stop: str | None,
+    plot: bool,
+    isolate: bool | None,
 ) -> None:
     """Run SCENARIO (a .toml scenario or an SSP 1.0 .ssp archive) once and write its results
     to --out."""
@@ -181,14 +187,26 @@ def run(
         _output_folder(out, "--out")
         sc = _load_scenario(scenario)
         overrides = _stop_override(sc, stop)
-        if isolate and sc.path.suffix.lower() == ".ssp":
-            raise UserError("--isolate runs .toml scenarios; run the .ssp archive without it")
+        foreign: dict[str, str] = {}
+        if isolate is None:
+            from cosim.foreign import foreign_fmus
+
+            foreign = foreign_fmus(sc, fmu_dir)
+            isolate = bool(foreign)
         if isolate:
             from cosim.isolate import run_isolated
 
+            def started(info: dict) -> None:
+                _echo_running(sc, info)
+                if foreign:
+                    click.echo(
+                        f"  in a child process: FMU(s) not built by ins-cosim "
+                        f"({', '.join(foreign)}); --no-isolate runs here"
+                    )
+
             result = run_isolated(
                 sc.path, fmu_dir=fmu_dir, overrides=overrides, check=_check_roles,
-                started=lambda info: _echo_running(sc, info),
+                started=started, loader=_load_scenario,
             )  # fmt: skip
         else:
             result = _run_here(sc, fmu_dir, overrides)

@@ -270,6 +270,7 @@ def _child(
     fmu_dir: str | None,
     overrides: dict[str, Any],
     check: Callable[[Any, Any], None] | None,
+    loader: Callable[[str], Any] | None = None,
 ) -> None:
     """The isolated process: build, check, run, stream the rows, send the result."""
     from cosim.scenario import build_master, load_scenario
@@ -279,7 +280,7 @@ def _child(
     board = StepBoard(raw)
     board.post(LOADING)
     try:
-        sc = load_scenario(scenario)
+        sc = (loader or load_scenario)(scenario)
         master = build_master(sc, fmu_dir=fmu_dir, **overrides)
         if check is not None:
             check(sc, master)
@@ -317,6 +318,7 @@ def run_isolated(
     overrides: dict[str, Any] | None = None,
     check: Callable[[Any, Any], None] | None = None,
     started: Callable[[dict[str, Any]], None] | None = None,
+    loader: Callable[[str], Any] | None = None,
 ) -> RunResult:
     """Run a scenario once in a child process that may die without taking this one along.
 
@@ -334,6 +336,9 @@ def run_isolated(
     started : callable, optional
         Called here with ``name``, ``blocks``, ``n_steps``, ``step`` [s], ``coupling``
         once the child has built the blocks.
+    loader : callable, optional
+        ``loader(path)`` reads the scenario in the child (a module-level function: it is
+        pickled); default :func:`cosim.scenario.load_scenario` (``.toml`` files).
 
     Returns
     -------
@@ -356,7 +361,15 @@ def run_isolated(
     fmu = None if fmu_dir is None else str(Path(fmu_dir).resolve())
     proc = ctx.Process(
         target=_child,
-        args=(give, board.raw, str(Path(scenario).resolve()), fmu, dict(overrides or {}), check),
+        args=(
+            give,
+            board.raw,
+            str(Path(scenario).resolve()),
+            fmu,
+            dict(overrides or {}),
+            check,
+            loader,
+        ),
         daemon=True,
         name="ins-cosim-isolated-run",
     )

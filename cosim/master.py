@@ -2,7 +2,10 @@
 
 The coupling rule (README, "The coupling rule", has the diagram):
 
-- Time is ``t_n = t0 + n * h`` from an integer counter ``n``; nothing accumulates.
+- Time ``t_n`` comes from an integer counter ``n``; nothing accumulates. By default
+  ``t_n`` is the double nearest the exact ``t0 + n h`` (one rounding, as libcosim's
+  integer clock); ``clock = "fmpy"`` computes ``t0 + n * h`` in floating point, as fmpy
+  does (:mod:`cosim.clock`, docs/coupling.md).
 - A block of rate ``k`` steps once every ``k`` macro steps, in the macro steps ``n`` with
   ``(n + 1) % k == 0``, from ``t_{n+1-k}`` to ``t_{n+1}`` (step size ``k h``): its step *ends*
   on the macro step's end, so what it publishes is valid at the same instant as everyone
@@ -45,6 +48,7 @@ import numpy as np
 
 from cosim.blockchecks import check_blocks
 from cosim.blocks import BlockCallError, BlockHost, BlockTerminated
+from cosim.clock import CLOCKS, EXACT, Clock
 from cosim.errors import ScenarioError, SimulationError
 from cosim.results import RunResult
 from cosim.variables import REAL, Variable
@@ -105,6 +109,10 @@ class MasterSettings:
         attribute holds the lower-case, hyphenated form).
     record_every : int
         Record every k-th macro step (t0 is always recorded), >= 1.
+    clock : str
+        How the time of macro step n is computed (:mod:`cosim.clock`): ``"exact"``
+        (default: the double nearest the exact ``t0 + n h``) or ``"fmpy"`` (``t0 + n * h``
+        in floating point, as fmpy's ``simulate_fmu``).
     n_steps : int
         Number of macro steps, derived from the above (not an argument).
 
@@ -119,6 +127,7 @@ class MasterSettings:
     start: float = 0.0
     coupling: str = GAUSS_SEIDEL
     record_every: int = 1
+    clock: str = EXACT
     n_steps: int = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -152,6 +161,11 @@ class MasterSettings:
                 key="master.coupling",
             )
         object.__setattr__(self, "coupling", coupling)
+        if self.clock not in CLOCKS:
+            raise ScenarioError(
+                f"expected one of {', '.join(repr(c) for c in CLOCKS)}, got {self.clock!r}",
+                key="master.clock",
+            )
         every = self.record_every
         if isinstance(every, bool) or not isinstance(every, int) or every < 1:
             raise ScenarioError(f"expected a positive integer, got {every!r}", key="output.every")
@@ -453,7 +467,9 @@ class Master:
         self.warn_loops()
         s = self.settings
         sys_ = self.system
-        h, t0, n_steps = s.step, s.start, s.n_steps
+        h, n_steps = s.step, s.n_steps
+        time_of = Clock(s.start, h, s.clock).time  # t_n [s] of macro step n
+        t0 = time_of(0)
         n_rows = n_steps // s.record_every + 1
         names = ["time"] + [f"{b}.{v}" for b, v in self.record]
         data = np.zeros(n_rows, dtype=[(n, "f8") for n in names])
@@ -471,9 +487,10 @@ class Master:
             meta["seeds"] = {b: p["seed"] for b, p in sys_.parameters.items() if "seed" in p}
             meta["master"] = {
                 "step": h,
-                "start": t0,
+                "start": s.start,
                 "stop": s.stop,
                 "coupling": s.coupling,
+                "clock": s.clock,
                 "record_every": s.record_every,
                 "order": self.order,
                 "delayed": [str(c) for c in self.delayed],
@@ -576,17 +593,18 @@ class Master:
         every = s.record_every
         source = values.copy() if jacobi else values  # Jacobi: the t_n snapshot
         steps = [(p, p[1].do_step) for p in plan]  # bound now: after any wrapping
+        t_end = t0
         for n in range(n_steps):
             if jacobi:
                 source[...] = values
-            t_n, t_end = t0 + n * h, t0 + (n + 1) * h
+            t_n, t_end = t_end, time_of(n + 1)
             for (name, _host, k, in_idx, factor, put, read, out, listed, outs), do_step in steps:
                 if k == 1:
-                    t_begin = t_n  # t0 + (n + 1 - k) * h with k = 1, the same float
+                    t_begin = t_n  # time_of(n + 1 - k) with k = 1
                 elif (n + 1) % k:
                     continue
                 else:
-                    t_begin = t0 + (n + 1 - k) * h
+                    t_begin = time_of(n + 1 - k)
                 if put is not None:
                     x = source[in_idx]
                     put(x if factor is None else x * factor)

@@ -165,4 +165,6 @@ def _jsonable(obj: Any) -> Any:
         return obj.tolist()
     if isinstance(obj, Path):
         return str(obj)
+    if isinstance(obj, (bytes, bytearray)):  # a Binary value: hex digits, as in the CSV
+        return obj.hex()
     raise TypeError(f"not JSON serialisable: {type(obj).__name__}")

@@ -77,8 +77,8 @@ BLOCK_KEYS = {
     "unconnected_ok",
 }
 SCENARIO_KEYS = {"name", "description"}
-MASTER_KEYS = {"step", "stop", "start", "coupling"}
-SETTING_KEYS = {"step", "stop", "start", "coupling", "record_every"}
+MASTER_KEYS = {"step", "stop", "start", "coupling", "clock"}
+SETTING_KEYS = {"step", "stop", "start", "coupling", "record_every", "clock"}
 OUTPUT_KEYS = {"variables", "every"}
 #: Value range of every integer type (FMI 2 Integer, FMI 3 Int8..UInt64, Enumeration).
 INTEGER_RANGES = {
@@ -617,6 +617,7 @@ def load_scenario(path: str | Path) -> Scenario:
             start=parse_seconds(master.get("start", 0.0), f, "master.start"),
             coupling=master.get("coupling", GAUSS_SEIDEL),
             record_every=output.get("every", 1),
+            clock=master.get("clock", MasterSettings.clock),
         )
     except ScenarioError as exc:
         raise ScenarioError(exc.message, file=f, key=exc.key) from None

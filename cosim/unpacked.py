@@ -18,6 +18,7 @@ import tempfile
 import threading
 from pathlib import Path
 
+from cosim.archives import extract_archive
 from cosim.errors import FmuError
 
 
@@ -65,10 +66,9 @@ class UnpackedFolders:
         Raises
         ------
         FmuError
-            The archive cannot be unpacked (corrupt zip, illegal member paths).
+            The archive cannot be unpacked (corrupt zip, illegal member paths, over the
+            unpack limits of :mod:`cosim.archives`).
         """
-        from fmpy import extract
-
         stem = re.sub(r"[^\w.-]", "_", Path(fmu).stem)[:40]
         folder = str(self.root() / f"{PREFIX}{os.getpid()}_{stem}_{sha256[:16]}")
         with self._lock:
@@ -77,8 +77,10 @@ class UnpackedFolders:
                 self.sweep()
             if self._users.get(folder, 0) == 0:
                 shutil.rmtree(folder, ignore_errors=True)  # a dead process with our pid
-                try:
-                    extract(str(fmu), folder)
+                try:  # within the unpack limits (cosim.archives), counted while written
+                    extract_archive(fmu, folder)
+                except FmuError:
+                    raise
                 except Exception as exc:
                     shutil.rmtree(folder, ignore_errors=True)
                     raise FmuError(f"cannot unpack FMU '{fmu}': {exc}") from exc

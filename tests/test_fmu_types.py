@@ -95,25 +95,31 @@ def test_step_sizes_end_on_the_master_grid() -> None:
     from cosim.blocks import InProcessHost
     from cosim.master import Master, MasterSettings, System
 
-    host = InProcessHost("log", StepLog)
-    settings = MasterSettings(0.1, 10.0, start=0.3)
-    master = Master(System({"log": host}, []), settings)
-    try:
-        master.run()
-        steps = host.instance.steps
-    finally:
-        master.terminate()
-    for n, (t, h) in enumerate(steps):
+    def steps(clock: str) -> list[tuple[float, float]]:
+        host = InProcessHost("log", StepLog)
+        settings = MasterSettings(0.1, 10.0, start=0.3, clock=clock)
+        master = Master(System({"log": host}, []), settings)
+        try:
+            master.run()
+            return host.instance.steps
+        finally:
+            master.terminate()
+
+    for n, (t, h) in enumerate(steps("fmpy")):
         assert t == 0.3 + n * 0.1
         assert t + h == 0.3 + (n + 1) * 0.1, n  # not t + 0.1: one rounding less
+    for n, (t, h) in enumerate(steps("exact")):  # the default: t_n nearest 3/10 + n/10
+        assert t == (3 + n) / 10
+        assert t + h == (4 + n) / 10, n
 
 
 def test_an_fmi3_fmu_that_asks_to_stop_agrees_with_fmpy(fmi3_ramp_fmu: Path, tmp_path) -> None:
     path = tmp_path / "ramp.toml"
     path.write_text(
-        f'[master]\nstep = "0.1 s"\nstop = "2 s"\n\n[blocks.ramp]\nfmu = "{fmi3_ramp_fmu}"\n'
+        f'[master]\nstep = "0.1 s"\nstop = "2 s"\nclock = "fmpy"\n\n'
+        f'[blocks.ramp]\nfmu = "{fmi3_ramp_fmu}"\n'
         f'parameters = {{ stop_at = "0.75 s" }}\nunconnected_ok = ["u"]\n'
-    )
+    )  # fmpy's clock (docs/coupling.md): bit for bit with fmpy
     ours = cosim.run(path)
     assert ours.status == "completed"
     assert ours.metadata["terminated"]["call"] == "fmi3DoStep"
@@ -146,10 +152,16 @@ def echo_fmu(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def test_internal_steps_up_to_the_step_end_agree_with_fmpy(decay_fmu: Path, tmp_path) -> None:
     # like Reference-FMUs Roberts: a step end one rounding off would cost an extra step
     path = tmp_path / "decay.toml"
-    path.write_text(
+    text = (
         f'[master]\nstep = "0.1 s"\nstop = "3 s"\n\n[blocks.d]\nfmu = "{decay_fmu}"\n'
         f'parameters = {{ k = 0.7, dt_int = "30 ms" }}\n'
     )
+    path.write_text(text)
+    exact = cosim.run(path)  # the default clock: t_n nearest n/10, no extra step either
+    assert exact.time.tolist() == [k / 10 for k in range(31)]
+    assert int(exact["d.n_int"][-1]) == 120
+    # fmpy's clock (docs/coupling.md): the same times, steps and outputs as fmpy
+    path.write_text(text.replace('stop = "3 s"', 'stop = "3 s"\nclock = "fmpy"'))
     ours = cosim.run(path)
     theirs = simulate_fmu(
         str(decay_fmu),
@@ -278,6 +290,23 @@ def test_every_fmi3_type_is_set_and_echoed(echo3_fmu: Path, tmp_path) -> None:
     )
 
 
+def test_a_binary_parameter_is_written_as_hex_by_run(cli, echo3_fmu, tmp_path) -> None:
+    """Issue 30, item 2: a Binary parameter ended ``run`` in a traceback while writing
+    results.json (bytes are not JSON); it is written as hex digits, as in the CSV."""
+    path = tmp_path / "binary.toml"
+    path.write_text(
+        f'[master]\nstep = "0.25 s"\nstop = "1 s"\n\n[blocks.e]\nfmu = "{echo3_fmu}"\n'
+        f'parameters = {{ p_binary = "0a0b", u_binary = "ff" }}\n'
+    )
+    res = cli("run", path, "--out", tmp_path / "o", "--no-plot")
+    assert res.code == 0 and "Traceback" not in res.err, res.err
+    meta = json.loads((tmp_path / "o" / "results.json").read_text())
+    assert meta["parameters"]["e"]["p_binary"] == "0a0b"
+    assert meta["types"]["e.y_binary"] == "Binary"
+    result = RunResult.load(tmp_path / "o" / "results.csv")
+    assert result.strings["e.y_binary"] == ["0a0bff"] * 5
+
+
 def test_an_out_of_range_fmi3_integer_is_refused_by_check(cli, echo3_fmu, tmp_path) -> None:
     path = tmp_path / "bad.toml"
     path.write_text(
@@ -293,9 +322,9 @@ def test_fmi3_internal_steps_up_to_the_step_end_agree_with_fmpy(tmp_path: Path) 
     fmu = build_c_fmu(ROOT / "tests" / "fixtures" / "decay3", tmp_path / "Decay3.fmu")
     path = tmp_path / "decay3.toml"
     path.write_text(
-        f'[master]\nstep = "0.1 s"\nstop = "3 s"\n\n[blocks.d]\nfmu = "{fmu}"\n'
+        f'[master]\nstep = "0.1 s"\nstop = "3 s"\nclock = "fmpy"\n\n[blocks.d]\nfmu = "{fmu}"\n'
         f'parameters = {{ k = 0.7, y0 = "1 s" }}\nunconnected_ok = ["u"]\n'
-    )
+    )  # fmpy's clock (docs/coupling.md): bit for bit with fmpy
     ours = cosim.run(path)
     theirs = simulate_fmu(
         str(fmu),

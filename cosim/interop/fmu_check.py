@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from cosim.archives import check_archive
 from cosim.errors import FmuError
 from cosim.interop.interfaces import InterfaceError, RoleMatch, RoleSpec, load_role, match_role
 from cosim.units import name_disagreement
@@ -127,6 +128,7 @@ def check_fmu(
     path = Path(path)
     if not path.is_file():
         raise FmuError(f"FMU file '{path}' does not exist")
+    check_archive(path)  # the unpack limits, before any member is read
     try:
         md = read_model_description(str(path), validate=False)
     except Exception as exc:

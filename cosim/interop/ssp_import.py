@@ -54,6 +54,7 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 from xml.etree import ElementTree as ET
 
+from cosim.archives import check_archive
 from cosim.errors import FmuError, ScenarioError, UnitError
 from cosim.master import GAUSS_SEIDEL, JACOBI, MasterSettings, System
 from cosim.scenario import BlockSpec, Scenario
@@ -169,6 +170,8 @@ class _Archive:
 
     def __init__(self, path: Path) -> None:
         self.path = path
+        if path.is_file() and zipfile.is_zipfile(path):
+            check_archive(path, "SSP archive")  # the unpack limits, before any member is read
         try:
             self.zip = zipfile.ZipFile(path)
         except (OSError, zipfile.BadZipFile) as exc:
@@ -360,6 +363,7 @@ def load_ssp(
         fmu = workdir / name / PurePosixPath(inner).name
         fmu.parent.mkdir(parents=True, exist_ok=True)
         fmu.write_bytes(archive.zip.read(inner))
+        check_archive(fmu)
         variables[name] = _fmu_vars(fmu, archive, cwhere)
         taken = {v for v in variables[name] if SCALAR_NAME.match(v)}
         rename = {}

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from cosim.errors import ScenarioError
+from cosim.foreign import foreign_fmus
 from cosim.scenario import Scenario, build_master, load_scenario
 from cosim.sensors.pairing import check_log_pairs
 from cosim.verify.lock import holding_report_folder
@@ -560,6 +561,7 @@ def run_campaign(
         fmu_dir=fmu,
         requirements=tuple(prep.requirements),
         history_points=settings.history_points,
+        isolate=bool(foreign_fmus(prep.scenario, fmu)),
     )
 
     bar = _progress(len(wanted), len(finished), progress)

@@ -307,8 +307,9 @@ class WorkerPool:
     Use it as a context manager (or call :meth:`close`). ``workers == 1`` runs the jobs
     in this process, keeping the built blocks between calls as well; a call with a single
     job while the pool has no process runs it in this process too (without keeping its
-    blocks). Making a pool of more than one starts this process's forkserver
-    (:func:`start_forkserver`).
+    blocks). A campaign with :attr:`WorkerSpec.isolate` (a foreign FMU) always runs in
+    worker processes, one with ``workers == 1``. Making a pool of more than one starts
+    this process's forkserver (:func:`start_forkserver`).
 
     Parameters
     ----------
@@ -395,12 +396,12 @@ class WorkerPool:
         jobs = list(jobs)
         if not jobs:
             return
-        if self.workers == 1:
+        if self.workers == 1 and not spec.isolate:
             self._here = True
             run_here(spec, jobs, done, keep=True)
             return
-        if len(jobs) == 1 and not self._procs:  # one run: not worth a process's start
-            run_here(spec, jobs, done)
+        if len(jobs) == 1 and not self._procs and not spec.isolate:
+            run_here(spec, jobs, done)  # one run: not worth a process's start
             return
         if spec != self._spec:
             self._stop_all(30)

@@ -6,7 +6,9 @@ parameters on a copy of the built system's own before the run. A run's numbers d
 only on its job (seeds, parameters, stratified draws), never on the worker that ran it
 nor on the runs it ran before.
 
-- ``workers == 1``: in this process, one after the other.
+- ``workers == 1``: in this process, one after the other; in one worker process when the
+  scenario holds an FMU not built by ins-cosim (:attr:`WorkerSpec.isolate`), so that its
+  crash is one crashed run, as with more workers.
 - ``workers > 1``: local worker processes (:class:`cosim.verify.pool.WorkerPool`), each
   running one job at a time sent to it through its own pipe, so the parent always knows
   which run each process is running. A pool given to :func:`run_jobs` keeps its
@@ -81,6 +83,10 @@ class WorkerSpec:
     keep : bool
         Return every recorded column in full, and the run's parameters, in the record
         (:attr:`RunRecord.columns`, :attr:`RunRecord.parameters`).
+    isolate : bool
+        Run in worker processes even with one worker (``--workers 1``): the scenario
+        holds an FMU not built by ins-cosim (:func:`cosim.foreign.foreign_fmus`), whose
+        crash must cost one run, not the campaign.
     """
 
     scenario: str
@@ -92,6 +98,7 @@ class WorkerSpec:
     record_every: int | None = None
     outputs: tuple[str, ...] | None = None
     keep: bool = False
+    isolate: bool = False
 
 
 @dataclass(frozen=True)
@@ -369,7 +376,7 @@ def run_jobs(
         _run_dask(spec, jobs, done, cluster)
     elif pool is not None:
         pool.run(spec, jobs, done)
-    elif workers > 1 and len(jobs) > 1:
+    elif (workers > 1 and len(jobs) > 1) or spec.isolate:
         from cosim.verify.pool import WorkerPool  # it runs the jobs with run_one
 
         with WorkerPool(workers) as once:
