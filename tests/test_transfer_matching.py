@@ -17,6 +17,7 @@ from cosim.alignment.transfer import TransferAlignment
 from cosim.alignment.transfer_filter import StageSettings
 from cosim.alignment.transfer_matching import MatchingFilter
 from cosim.alignment.transfer_model import StateLayout, TransferConfigError, TransferTuning
+from cosim.models import native
 from cosim.models.constants import ARCMIN, DEG
 from cosim.models.conventions import dcm_to_euler, euler_to_dcm, rotvec_to_dcm
 
@@ -148,6 +149,13 @@ def test_the_velocity_path_stays_compiled_and_unextended() -> None:
     assert not block.extended
     assert type(block.estimator).__name__ == "TransferFilter"
     assert block.nis_dof == 3.0
+    assert block.kernel_path == (1.0 if native.library() is not None else 0.0)
+    block = TransferAlignment()
+    block.matching = 2
+    block.p0_heading = 3.0 * DEG
+    block.setup_experiment(0.0)
+    block.exit_initialization_mode()
+    assert block.extended and block.kernel_path == 0.0 and block.nis_dof == 6.0
 
 
 # ----------------------------------------------------------------------------- scenario runs

@@ -229,6 +229,7 @@ class TransferAlignment(Block):
         output("mount_sigma", _ZERO3, "arcmin", "1-sigma of mount (per period)"),
         output("lag", 0.0, "s", "estimated lag of the master's data (estimate_lag = 1)"),
         output("lag_sigma", 0.0, "s", "1-sigma of lag"),
+        output("kernel_path", 0.0, "1", "1: compiled velocity-path kernels ran, 0: numpy"),
     )
     default_step = 0.02
     default_stop = 10.0
@@ -443,6 +444,7 @@ class TransferAlignment(Block):
         self.nis = 0.0
         self.stage = 0.0
         self.nis_dof = float(getattr(self._filter, "dim_z", 3))
+        self.kernel_path = 1.0 if self.compiled else 0.0
         self._publish()
 
     def _check_step(self, h: float) -> None:
