@@ -1,41 +1,49 @@
 """Runs-needed advice: how many runs in total would decide a requirement, given the runs made.
 
 One function, :func:`advise`, gives the advice that ``verify`` prints under an undecided
-verdict and that ``plan`` prints for its pilot, so the two agree on the same runs. It
-predicts, from the runs already made (failed runs included as the requirement's
-``on_failure`` counts them), the distribution of the verdict after more runs of the same
-campaign, and returns the fewest runs in total N at which the campaign is decided
-(satisfied or violated) with probability at least ``share`` (default
-:data:`ADVICE_SHARE`, 80 %). The runs made stay in the campaign: with 19 of 20 runs
-passing, the advice is about the 20 runs plus a few more, not a fresh campaign.
+verdict and that ``plan`` prints for its pilot, so the two agree on the same runs. The
+runs made stay in the campaign (failed runs included as the requirement's ``on_failure``
+counts them): with 19 of 20 runs passing, the advice is about the 20 runs plus more.
 
-The prediction per statistic (each with the statistic's own bound at N runs, as
-:func:`cosim.verify.statistics.judge` applies it):
+The rule. The verdict turns on one parameter: the probability that a run meets the limit
+(``pass_rate``, ``p<q>``, ``max``), the RMS (``rms``) or ``mu + k sigma``
+(``mean+ksigma``). Its estimate from the runs made lies on one side of the limit: the
+decision on that side (satisfied or violated) is the one aimed at. The run count is
+computed at the end of the one-sided :data:`PROMISE_LEVEL` (80 %) confidence bound of
+the parameter nearest the limit (Clopper-Pearson, chi-square, noncentral t): the fewest
+runs in total N at which, with the runs made kept and N - n more drawn at that value, the
+aimed decision has probability at least ``share`` (:data:`ADVICE_SHARE`, 80 %). The
+probability of the aimed decision only grows as the true value moves away from the limit
+(more runs meeting it, a smaller RMS), so the advice is a **promise** for every true value
+at or beyond the bound, and the text names that bound.
 
-- ``pass_rate``, ``p<q>``, ``max``: these verdicts depend only on how many runs meet the
-  limit. With k of the n runs made over it, the share of runs over the limit has the
-  Jeffreys posterior Beta(k + 1/2, n - k + 1/2), so the count over the limit among m
-  more runs is beta-binomial; the verdict at N = n + m is evaluated for every count
-  (Clopper-Pearson bounds for ``pass_rate``, Wilks' order-statistic ranks for ``p<q>``,
-  every run passing and ``1 - p^N >= confidence`` for ``max``) and weighted by its
-  probability. Exact sums, no simulation.
-- ``rms``: under the bound's own model (each metric is ``|e|`` of a zero-mean normal e)
-  the sum of squares S_m of m more runs over the sum S_n of the n made is
-  ``(m / n) F(m, n)`` whatever the true sigma (a pivot), so the probability that
-  ``S_n + S_m`` lands outside the chi-square bounds at N is one F-distribution value.
-- ``mean+ksigma``: normal metrics; the mean and variance of the runs to come are drawn
-  from the posterior predictive of the runs made (noninformative prior; 4000 draws with a
-  fixed seed), and judged with the noncentral-t factors at N. With ``assume = "none"``
-  (bootstrap bounds, at least 10 runs) the advice uses the same normal-theory factors: an
-  approximation, said in the method.
+When the bound is not on the estimate's side of the limit (or lies so close to it that
+``CAP`` runs do not reach the share), the pilot cannot exclude a true value at the limit,
+where no run count decides often (about 2 (1 - confidence) of campaigns): the text says
+that no number of runs can promise a decision and gives the N for a true value equal to
+the pilot's estimate, marked as such (``Advice.promised`` False). A plug-in N without that
+condition decided 69 to 79 % of campaigns near the limit (docs/statistics.md).
 
-Failed runs: ``on_failure = "fail"`` counts them as runs over the limit (and future runs
-fail as often, through the posterior); ``"exclude"`` predicts the completed runs and
-scales the runs in total by the share that completed; ``"undecided"`` gives no advice
-while a run failed (no number of runs decides it). Runs too short to decide give none.
+The probabilities at a given true value, each with the statistic's own bound at N runs as
+:func:`cosim.verify.statistics.judge` applies it:
 
-The share is a prediction, not a guarantee: tests/test_advice.py simulates campaigns
-that follow the advice and counts how many it decides.
+- ``pass_rate``, ``p<q>``, ``max``: the count meeting the limit among m more runs is
+  binomial; the verdict at N = n + m is evaluated for every count (Clopper-Pearson for
+  ``pass_rate``, Wilks' order-statistic ranks for ``p<q>``, every run passing and
+  ``1 - p^N >= confidence`` for ``max``). Exact sums.
+- ``rms``: each metric is ``|e|`` of a zero-mean normal e (the bound's model); the sum of
+  squares of m more runs is ``sigma^2 chi2(m)``: one chi-square value per N.
+- ``mean+ksigma``: normal metrics with the runs' standard deviation taken at the pilot's
+  s and the mean at the bound minus k s (the spread is not bounded: an approximation);
+  the mean and variance of the runs to come are drawn (4000 draws, fixed seed) and judged
+  with the noncentral-t factors at N. With ``assume = "none"`` (bootstrap bounds) the same
+  normal-theory factors stand in, said in the method.
+
+Failed runs: ``on_failure = "fail"`` counts them as runs over the limit; ``"exclude"``
+advises on the completed runs and scales the runs to come by the share that completed;
+``"undecided"`` gives no advice while a run failed. Runs too short to decide give none.
+tests/test_advice.py follows the advice in simulated campaigns near and away from the
+limit.
 """
 
 from __future__ import annotations

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.verify.advice import ADVICE_SHARE, CAP
+from cosim.verify.advice import ADVICE_SHARE, CAP, PROMISE_LEVEL
 from cosim.verify.campaign import CampaignError, run_campaign
 from cosim.verify.requirements import UNDECIDED, Requirement, RunMetric
 from cosim.verify.sequential import (
@@ -455,7 +455,8 @@ def format_plan(plan: Plan) -> str:
             lines.append(f"note: {p.id}: {p.note}")
     lines.append(
         f"runs to decide: the runs in total, the pilot's included, at which the campaign is "
-        f"decided with probability {100 * ADVICE_SHARE:g} % as predicted from the pilot (what "
+        f"decided with probability {100 * ADVICE_SHARE:g} % for a true value at or beyond the "
+        f"pilot's one-sided {100 * PROMISE_LEVEL:g} % bound (what "
         f"`verify --runs {plan.pilot}` advises on the same runs; docs/statistics.md); for a "
         f"requirement the pilot decides, the fewest of its first runs that decide it; (N): the "
         f"pilot cannot exclude a true value at the limit, N holds only if the truth is as "
