@@ -13,10 +13,11 @@ alpha = 0.05 as 0.05 x (10, 10, 20, 40) / 80:
 
 A fixed campaign at 95 % needs n >= ln 0.05 / ln P runs, all passing: 5 runs for P = 0.5
 (the pilot's first 5 runs decide RATE-50: what ``plan`` prints), 19 for 0.85. The 10-run
-pilot leaves RATE-85 undecided, and ``plan`` prints the runs in total that decide it with
-predicted probability 80 % (cosim/verify/advice.py): 40, where one run of 40 may fail
-(19 runs would need all 9 more to pass, predicted at 73 %); ``verify --runs 10`` advises
-the same.
+pilot leaves RATE-85 undecided. Its one-sided 80 % Clopper-Pearson lower bound,
+0.2^(1/10) = 0.8513, lies above 0.85 by so little that no run count up to 10 000 decides
+80 % of campaigns at it, so no number of runs is promised (cosim/verify/advice.py): ``plan``
+prints "(19)", the runs that decide it if the true pass rate is the pilot's 1 (19 runs,
+all passing), with a note saying so; ``verify --runs 10`` advises the same.
 """
 
 from __future__ import annotations
@@ -128,10 +129,12 @@ def test_plan_prints_runs_and_time_per_requirement(tmp_path: Path) -> None:
         "[0.7411, 1]",
         "0.85",
         "undecided",
-        "40",
+        "(19)",
         "satisfied",
     ]
     assert a[9].startswith("10 runs, ") and b[9].startswith("40 runs, "), (a, b)
+    assert "note: RATE-85: the pilot cannot exclude a true pass rate at the limit" in out
+    assert "only if the true pass rate is 1 or more (the pilot's estimate)" in out
     assert b[8].endswith((" s", " min")) and float(b[8].split()[0]) > 0
     assert "--until-decided --runs 10 --max-runs 80" in out.replace("\n", " ")
     assert not list(tmp_path.glob("ins-cosim-plan-*")), "the pilot folder is removed"
@@ -141,7 +144,8 @@ def test_plan_prints_runs_and_time_per_requirement(tmp_path: Path) -> None:
     assert verify.returncode == 2, verify.stderr  # RATE-85 undecided
     advised = re.search(r"RATE-85: .*about (\d+) runs in total \((\d+) more\)", verify.stdout)
     assert advised, verify.stdout
-    assert advised.group(1) == b[6] == "40" and advised.group(2) == "30"
+    assert f"({advised.group(1)})" == b[6] == "(19)" and advised.group(2) == "9"
+    assert "no number of runs can promise a decision" in verify.stdout
 
 
 # slow (~17 s): an interrupted sequential campaign of real processes, resumed, and its

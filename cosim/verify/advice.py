@@ -1,41 +1,49 @@
 """Runs-needed advice: how many runs in total would decide a requirement, given the runs made.
 
 One function, :func:`advise`, gives the advice that ``verify`` prints under an undecided
-verdict and that ``plan`` prints for its pilot, so the two agree on the same runs. It
-predicts, from the runs already made (failed runs included as the requirement's
-``on_failure`` counts them), the distribution of the verdict after more runs of the same
-campaign, and returns the fewest runs in total N at which the campaign is decided
-(satisfied or violated) with probability at least ``share`` (default
-:data:`ADVICE_SHARE`, 80 %). The runs made stay in the campaign: with 19 of 20 runs
-passing, the advice is about the 20 runs plus a few more, not a fresh campaign.
+verdict and that ``plan`` prints for its pilot, so the two agree on the same runs. The
+runs made stay in the campaign (failed runs included as the requirement's ``on_failure``
+counts them): with 19 of 20 runs passing, the advice is about the 20 runs plus more.
 
-The prediction per statistic (each with the statistic's own bound at N runs, as
-:func:`cosim.verify.statistics.judge` applies it):
+The rule. The verdict turns on one parameter: the probability that a run meets the limit
+(``pass_rate``, ``p<q>``, ``max``), the RMS (``rms``) or ``mu + k sigma``
+(``mean+ksigma``). Its estimate from the runs made lies on one side of the limit: the
+decision on that side (satisfied or violated) is the one aimed at. The run count is
+computed at the end of the one-sided :data:`PROMISE_LEVEL` (80 %) confidence bound of
+the parameter nearest the limit (Clopper-Pearson, chi-square, noncentral t): the fewest
+runs in total N at which, with the runs made kept and N - n more drawn at that value, the
+aimed decision has probability at least ``share`` (:data:`ADVICE_SHARE`, 80 %). The
+probability of the aimed decision only grows as the true value moves away from the limit
+(more runs meeting it, a smaller RMS), so the advice is a **promise** for every true value
+at or beyond the bound, and the text names that bound.
 
-- ``pass_rate``, ``p<q>``, ``max``: these verdicts depend only on how many runs meet the
-  limit. With k of the n runs made over it, the share of runs over the limit has the
-  Jeffreys posterior Beta(k + 1/2, n - k + 1/2), so the count over the limit among m
-  more runs is beta-binomial; the verdict at N = n + m is evaluated for every count
-  (Clopper-Pearson bounds for ``pass_rate``, Wilks' order-statistic ranks for ``p<q>``,
-  every run passing and ``1 - p^N >= confidence`` for ``max``) and weighted by its
-  probability. Exact sums, no simulation.
-- ``rms``: under the bound's own model (each metric is ``|e|`` of a zero-mean normal e)
-  the sum of squares S_m of m more runs over the sum S_n of the n made is
-  ``(m / n) F(m, n)`` whatever the true sigma (a pivot), so the probability that
-  ``S_n + S_m`` lands outside the chi-square bounds at N is one F-distribution value.
-- ``mean+ksigma``: normal metrics; the mean and variance of the runs to come are drawn
-  from the posterior predictive of the runs made (noninformative prior; 4000 draws with a
-  fixed seed), and judged with the noncentral-t factors at N. With ``assume = "none"``
-  (bootstrap bounds, at least 10 runs) the advice uses the same normal-theory factors: an
-  approximation, said in the method.
+When the bound is not on the estimate's side of the limit (or lies so close to it that
+``CAP`` runs do not reach the share), the pilot cannot exclude a true value at the limit,
+where no run count decides often (about 2 (1 - confidence) of campaigns): the text says
+that no number of runs can promise a decision and gives the N for a true value equal to
+the pilot's estimate, marked as such (``Advice.promised`` False). A plug-in N without that
+condition decided 69 to 79 % of campaigns near the limit (docs/statistics.md).
 
-Failed runs: ``on_failure = "fail"`` counts them as runs over the limit (and future runs
-fail as often, through the posterior); ``"exclude"`` predicts the completed runs and
-scales the runs in total by the share that completed; ``"undecided"`` gives no advice
-while a run failed (no number of runs decides it). Runs too short to decide give none.
+The probabilities at a given true value, each with the statistic's own bound at N runs as
+:func:`cosim.verify.statistics.judge` applies it:
 
-The share is a prediction, not a guarantee: tests/test_advice.py simulates campaigns
-that follow the advice and counts how many it decides.
+- ``pass_rate``, ``p<q>``, ``max``: the count meeting the limit among m more runs is
+  binomial; the verdict at N = n + m is evaluated for every count (Clopper-Pearson for
+  ``pass_rate``, Wilks' order-statistic ranks for ``p<q>``, every run passing and
+  ``1 - p^N >= confidence`` for ``max``). Exact sums.
+- ``rms``: each metric is ``|e|`` of a zero-mean normal e (the bound's model); the sum of
+  squares of m more runs is ``sigma^2 chi2(m)``: one chi-square value per N.
+- ``mean+ksigma``: normal metrics with the runs' standard deviation taken at the pilot's
+  s and the mean at the bound minus k s (the spread is not bounded: an approximation);
+  the mean and variance of the runs to come are drawn (4000 draws, fixed seed) and judged
+  with the noncentral-t factors at N. With ``assume = "none"`` (bootstrap bounds) the same
+  normal-theory factors stand in, said in the method.
+
+Failed runs: ``on_failure = "fail"`` counts them as runs over the limit; ``"exclude"``
+advises on the completed runs and scales the runs to come by the share that completed;
+``"undecided"`` gives no advice while a run failed. Runs too short to decide give none.
+tests/test_advice.py follows the advice in simulated campaigns near and away from the
+limit.
 """
 
 from __future__ import annotations
@@ -48,19 +56,31 @@ import numpy as np
 
 from cosim.verify.bounds import (
     BOOTSTRAP_MIN_RUNS,
+    clopper_pearson,
+    ksigma_normal_bounds,
     wilks_lower_rank,
     wilks_min_runs,
     wilks_upper_rank,
 )
 from cosim.verify.requirements import SATISFIED, UNDECIDED, VIOLATED, Requirement, RunMetric
 
-__all__ = ["ADVICE_SHARE", "CAP", "PREDICTIVE_DRAWS", "Advice", "advise", "decide_probability"]
+__all__ = [
+    "ADVICE_SHARE",
+    "CAP",
+    "PREDICTIVE_DRAWS",
+    "PROMISE_LEVEL",
+    "Advice",
+    "advise",
+    "decide_probability",
+]
 
 #: Probability of a decision the advised run count is chosen for.
 ADVICE_SHARE = 0.8
+#: One-sided confidence of the pilot's bound the promised run count is computed at.
+PROMISE_LEVEL = 0.8
 #: Most runs in total the advice looks at.
 CAP = 10_000
-#: Posterior-predictive draws of the ``mean+ksigma`` advice (fixed seed).
+#: Draws of the runs to come in the ``mean+ksigma`` advice (fixed seed).
 PREDICTIVE_DRAWS = 4000
 _SEED = 27
 #: Runs beyond those made that are tried one by one for the count statistics.
@@ -75,19 +95,29 @@ class Advice:
     ----------
     runs : int or None
         Runs in total (those made included) at which the campaign is decided with
-        probability >= ``share``; None when not by ``CAP`` or when it cannot be advised.
+        probability >= ``share`` at the true value the advice is computed for; None when
+        not by ``CAP`` or when it cannot be advised.
     made : int
         Runs made (failed runs included).
     share : float
         The probability the run count was chosen for.
     probability : float
-        Predicted probability of a decision at ``runs`` (nan without ``runs``).
+        Probability of the decision at ``runs`` at that true value (nan without ``runs``).
     verdict : str
-        The likelier decision at ``runs`` (satisfied or violated; undecided without).
+        The decision aimed at: the one on the pilot's side of the limit (undecided
+        without ``runs``).
     method : str
         How the prediction was made.
     note : str
         Why there is no advice, if there is none.
+    promised : bool
+        True when ``runs`` is computed at the pilot's one-sided :data:`PROMISE_LEVEL`
+        bound, which lies on the estimate's side of the limit: the share holds for every
+        true value at least as far from the limit. False when the pilot cannot exclude a
+        true value at the limit: ``runs`` is then computed at the pilot's estimate, and
+        the text says that no number of runs can promise a decision.
+    template : str
+        The text around ``{advice}`` (the condition, and the preface when not promised).
     """
 
     runs: int | None
@@ -97,6 +127,8 @@ class Advice:
     verdict: str
     method: str
     note: str = ""
+    promised: bool = False
+    template: str = "{advice}"
 
     @property
     def more(self) -> int | None:
@@ -109,19 +141,22 @@ class Advice:
         Returns
         -------
         str
-            E.g. ``"about 22 runs in total (2 more) would decide it in 80 % of campaigns
-            (likely satisfied)"``.
+            E.g. ``"about 23 runs in total (3 more) would decide it (satisfied) in 80 % of
+            campaigns for a true pass rate of 0.8512 or more (the pilot's one-sided 80 %
+            bound)"``.
         """
         if self.runs is None:
             return self.note or f"not decided by {CAP} runs"
-        return (
-            f"about {self.runs} runs in total ({self.more} more) would decide it in "
-            f"{100 * self.share:g} % of campaigns (likely {self.verdict})"
+        advice = (
+            f"about {self.runs} runs in total ({self.more} more) would decide it "
+            f"({self.verdict}) in {100 * self.share:g} % of campaigns"
         )
+        return self.template.replace("{advice}", advice)
 
 
-def _binomial(req: Requirement, passed: np.ndarray, confidence: float) -> Callable:
-    """P(satisfied), P(violated) at N runs for pass_rate, p<q>, max (module docstring)."""
+def _binomial(req: Requirement, passed: np.ndarray, confidence: float, q: float) -> Callable:
+    """P(satisfied), P(violated) at N runs for pass_rate, p<q>, max, if a run meets the
+    limit with probability ``q`` (module docstring)."""
     from scipy import stats
 
     n = passed.size
@@ -132,7 +167,7 @@ def _binomial(req: Requirement, passed: np.ndarray, confidence: float) -> Callab
     def probability(total: int) -> tuple[float, float]:
         m = total - n
         over = k + np.arange(m + 1)  # runs over the limit at N
-        w = stats.betabinom.pmf(np.arange(m + 1), m, k + 0.5, n - k + 0.5)
+        w = stats.binom.pmf(np.arange(m + 1), m, 1.0 - q)
         good = total - over
         if req.statistic == "pass_rate":
             with np.errstate(invalid="ignore"):
@@ -155,30 +190,32 @@ def _binomial(req: Requirement, passed: np.ndarray, confidence: float) -> Callab
     return probability
 
 
-def _rms(req: Requirement, values: np.ndarray, confidence: float) -> Callable:
-    """P(satisfied), P(violated) at N runs for rms, by the F pivot (module docstring)."""
+def _rms(req: Requirement, values: np.ndarray, confidence: float, sigma2: float) -> Callable:
+    """P(satisfied), P(violated) at N runs for rms if the true RMS is sqrt(``sigma2``)."""
     from scipy import stats
 
-    n = values.size
     ss = float(np.sum(values**2))
     lim2 = float(req.limit) ** 2
+    n = values.size
 
     def probability(total: int) -> tuple[float, float]:
         m = total - n
-        if ss <= 0.0:
-            return 1.0, 0.0
-        # satisfied: ss + S_m <= lim^2 chi2_{1-c}(N); violated: ss + S_m > lim^2 chi2_c(N)
-        a = (lim2 * stats.chi2.ppf(1.0 - confidence, total) - ss) / ss * n / m
-        b = (lim2 * stats.chi2.ppf(confidence, total) - ss) / ss * n / m
-        sat = float(stats.f.cdf(a, m, n)) if a > 0 else 0.0
-        vio = float(stats.f.sf(b, m, n)) if b > 0 else 1.0
+        # satisfied: ss + S_m <= lim^2 chi2_{1-c}(N); violated: ss + S_m > lim^2 chi2_c(N),
+        # S_m = sigma2 chi2(m)
+        a = (lim2 * stats.chi2.ppf(1.0 - confidence, total) - ss) / sigma2
+        b = (lim2 * stats.chi2.ppf(confidence, total) - ss) / sigma2
+        sat = float(stats.chi2.cdf(a, m)) if a > 0 else 0.0
+        vio = float(stats.chi2.sf(b, m)) if b > 0 else 1.0
         return sat, vio
 
     return probability
 
 
-def _ksigma(req: Requirement, values: np.ndarray, confidence: float) -> Callable:
-    """P(satisfied), P(violated) at N runs for mean+ksigma (normal predictive draws)."""
+def _ksigma(
+    req: Requirement, values: np.ndarray, confidence: float, mu: float, sigma2: float
+) -> Callable:
+    """P(satisfied), P(violated) at N runs for mean+ksigma if the metrics are
+    N(``mu``, ``sigma2``) (fixed-seed draws of the runs to come)."""
     from scipy import stats
 
     n = values.size
@@ -192,9 +229,7 @@ def _ksigma(req: Requirement, values: np.ndarray, confidence: float) -> Callable
         m = total - n
         rng = np.random.default_rng(_SEED)
         r = PREDICTIVE_DRAWS
-        sigma2 = (n - 1) * var / rng.chisquare(n - 1, r)
-        mu = mean + np.sqrt(sigma2 / n) * rng.standard_normal(r)
-        mean_new = mu + np.sqrt(sigma2 / m) * rng.standard_normal(r)
+        mean_new = mu + math.sqrt(sigma2 / m) * rng.standard_normal(r)
         ss_new = sigma2 * rng.chisquare(m - 1, r) if m > 1 else np.zeros(r)
         grand = (n * mean + m * mean_new) / total
         ss = (n - 1) * var + ss_new + n * m / total * (mean - mean_new) ** 2
@@ -216,10 +251,73 @@ _METHOD = {
 }
 
 
+@dataclass(frozen=True)
+class _Truth:
+    """The parameter the verdict turns on, as the pilot estimates and bounds it."""
+
+    name: str  # e.g. "pass rate", "RMS"
+    unit: str
+    level: float  # its value at the limit
+    estimate: float
+    bound: float  # end of the one-sided PROMISE_LEVEL interval nearest the limit
+    side: str  # SATISFIED or VIOLATED: the decision on the estimate's side of the limit
+    higher_is_better: bool
+
+    def beyond(self, value: float) -> str:
+        """``"0.83 or more"`` / ``"7.1 arcmin or less"``: values at least as far."""
+        up = self.higher_is_better == (self.side == SATISFIED)
+        unit = "" if self.unit in ("", "1") else f" {self.unit}"
+        return f"{value:.4g}{unit} or {'more' if up else 'less'}"
+
+    @property
+    def promised(self) -> bool:
+        """Whether the bound lies on the estimate's side of the limit (strictly)."""
+        return (self.bound > self.level) == (self.estimate > self.level) and (
+            self.bound != self.level
+        )
+
+
+def _truth(req: Requirement, values: np.ndarray, level: float) -> _Truth | None:
+    """The pilot's estimate and one-sided ``level`` bound of the verdict's parameter
+    (None when the estimate is at the limit: no side to aim at)."""
+    from scipy import stats
+
+    n = values.size
+    if req.statistic in ("pass_rate", "quantile", "max"):
+        p = float(req.probability)
+        good = int(np.sum(values <= req.limit))
+        est = good / n
+        lower, upper = clopper_pearson(good, n, level)
+        name = "pass rate" if req.statistic == "pass_rate" else "share of runs meeting the limit"
+        if est == p:
+            return None
+        sat = est > p
+        return _Truth(name, "1", p, est, lower if sat else upper,
+                      SATISFIED if sat else VIOLATED, True)  # fmt: skip
+    lim = float(req.limit)
+    if req.statistic == "rms":
+        ss = float(np.sum(values**2))
+        est = math.sqrt(ss / n)
+        if est == lim:
+            return None
+        sat = est < lim
+        bound = math.sqrt(ss / stats.chi2.ppf(1.0 - level if sat else level, n))
+        return _Truth("RMS", req.unit, lim, est, bound, SATISFIED if sat else VIOLATED, False)
+    mean, s = float(np.mean(values)), float(np.std(values, ddof=1))
+    est = mean + float(req.k) * s
+    if est == lim:
+        return None
+    sat = est < lim
+    lower, upper = ksigma_normal_bounds(values, float(req.k), level)
+    name = f"mean+{float(req.k):g}sigma"
+    return _Truth(name, req.unit, lim, est, upper if sat else lower,
+                  SATISFIED if sat else VIOLATED, False)  # fmt: skip
+
+
 def decide_probability(
-    req: Requirement, metrics: Sequence[RunMetric], confidence: float
+    req: Requirement, metrics: Sequence[RunMetric], confidence: float, truth: float
 ) -> Callable[[int], tuple[float, float]]:
-    """The predicted probabilities of each decision after more runs.
+    """The probabilities of each decision after more runs, at a given true value.
 
     Parameters
     ----------
@@ -230,18 +328,24 @@ def decide_probability(
         says; none too short to decide).
     confidence : float
         Confidence of the verdict.
+    truth : float
+        The true value of the verdict's parameter: the probability that a run meets the
+        limit (``pass_rate``, ``p<q>``, ``max``), the RMS (``rms``, requirement's unit),
+        or ``mu + k sigma`` with sigma the runs' standard deviation (``mean+ksigma``).
 
     Returns
     -------
     callable
-        ``f(N) -> (P(satisfied at N), P(violated at N))`` for N > n runs in total.
+        ``f(N) -> (P(satisfied at N), P(violated at N))`` for N > n runs in total, the
+        n runs made kept and N - n more drawn at ``truth``.
     """
     values = np.array([m.value for m in metrics], dtype=float)
     if req.statistic in ("pass_rate", "quantile", "max"):
-        return _binomial(req, values <= req.limit, confidence)
+        return _binomial(req, values <= req.limit, confidence, truth)
     if req.statistic == "rms":
-        return _rms(req, values, confidence)
-    return _ksigma(req, values, confidence)
+        return _rms(req, values, confidence, truth**2)
+    s = float(np.std(values, ddof=1))
+    return _ksigma(req, values, confidence, truth - float(req.k) * s, s**2)
 
 
 def advise(
@@ -298,19 +402,68 @@ def advise(
     n = len(used)
     if req.statistic == "mean+ksigma" and n < 2:
         return none("mean+ksigma needs 2 runs before more can be predicted")
-    probability = decide_probability(req, used, confidence)
+    values = np.array([m.value for m in used], dtype=float)
+    if req.statistic == "mean+ksigma" and not np.std(values) > 0:
+        return none("mean+ksigma: the runs made do not vary, nothing to predict from")
+    truth = _truth(req, values, PROMISE_LEVEL)
+    if truth is None:
+        return none(
+            "the pilot's estimate is at the limit: no number of runs can promise a decision"
+        )
+    side = 0 if truth.side == SATISFIED else 1
+    counts = req.statistic in ("pass_rate", "quantile", "max")
+    unit = "" if truth.unit in ("", "1") else f" {truth.unit}"
+    bound = f"its one-sided {100 * PROMISE_LEVEL:g} % bound {truth.bound:.4g}{unit}"
+    total = None
+    if truth.promised:
+        probability = decide_probability(req, used, confidence, truth.bound)
+        total = _search(lambda t: probability(t)[side] >= share, n, cap, counts)
+    promised = total is not None
+    if promised:
+        condition = (
+            f"for a true {truth.name} of {truth.beyond(truth.bound)} (the pilot's one-sided "
+            f"{100 * PROMISE_LEVEL:g} % bound)"
+        )
+        preface = ""
+    else:
+        why = (
+            f"is not on the {truth.side} side of {truth.level:.4g}{unit}"
+            if not truth.promised
+            else f"is too close to {truth.level:.4g}{unit} to decide by {cap} runs"
+        )
+        preface = (
+            f"the pilot cannot exclude a true {truth.name} at the limit ({bound} {why}): "
+            f"no number of runs can promise a decision; "
+        )
+        condition = (
+            f"only if the true {truth.name} is {truth.beyond(truth.estimate)} "
+            f"(the pilot's estimate)"
+        )
+        probability = decide_probability(req, used, confidence, truth.estimate)
+        total = _search(lambda t: probability(t)[side] >= share, n, cap, counts)
+    if total is None:
+        return none(
+            f"{preface}not decided ({truth.side}) in {100 * share:g} % of campaigns by {cap} "
+            f"runs {condition}"
+        )
+    p_side = probability(total)[side]
+    runs = made + math.ceil((total - n) * made / n - 1e-9)  # "exclude": failed runs cost too
+    return Advice(runs, made, share, p_side, truth.side, method, "", promised,
+                  f"{preface}{{advice}} {condition}")  # fmt: skip
 
-    def ok(total: int) -> bool:
-        return sum(probability(total)) >= share
 
-    # The probability grows with N, in a saw tooth for the statistics decided by a count
-    # (each whole run over the limit): those are scanned run by run over the first
-    # SCAN runs; beyond, and for the smooth ones, doubling, bisection, then a scan.
+def _search(ok: Callable[[int], bool], n: int, cap: int, counts: bool) -> int | None:
+    """The fewest runs in total N > n with ``ok(N)``, searched up to ``cap``.
+
+    The probability grows with N, in a saw tooth for the statistics decided by a count
+    (each whole run over the limit): those are scanned run by run over the first SCAN
+    runs; beyond, and for the smooth ones, doubling, bisection, then a scan.
+    """
     lo = n
-    if req.statistic in ("pass_rate", "quantile", "max"):
+    if counts:
         first = next((t for t in range(n + 1, min(cap, n + SCAN) + 1) if ok(t)), None)
         if first is not None:
-            return _advice(probability, first, n, made, share, method)
+            return first
         lo = min(cap, n + SCAN)
     step = 1
     hi = lo + step
@@ -319,25 +472,8 @@ def advise(
         hi = lo + step
     hi = min(hi, cap)
     if hi <= lo or not ok(hi):
-        return none(f"not decided in {100 * share:g} % of campaigns by {cap} runs")
-    counts = req.statistic in ("pass_rate", "quantile", "max")
+        return None
     while hi - lo > (64 if counts else 1):
         mid = (lo + hi) // 2
         lo, hi = (lo, mid) if ok(mid) else (mid, hi)
-    hi = next(total for total in range(lo + 1, hi + 1) if total == hi or ok(total))
-    return _advice(probability, hi, n, made, share, method)
-
-
-def _advice(
-    probability: Callable[[int], tuple[float, float]],
-    total: int,
-    n: int,
-    made: int,
-    share: float,
-    method: str,
-) -> Advice:
-    """The advice of ``total`` runs judged (``n`` judged so far, ``made`` made)."""
-    p_sat, p_vio = probability(total)
-    runs = made + math.ceil((total - n) * made / n - 1e-9)  # "exclude": failed runs cost too
-    verdict = SATISFIED if p_sat >= p_vio else VIOLATED
-    return Advice(runs, made, share, p_sat + p_vio, verdict, method)
+    return next(total for total in range(lo + 1, hi + 1) if total == hi or ok(total))

@@ -35,7 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.verify.advice import ADVICE_SHARE, CAP
+from cosim.verify.advice import ADVICE_SHARE, CAP, PROMISE_LEVEL
 from cosim.verify.campaign import CampaignError, run_campaign
 from cosim.verify.requirements import UNDECIDED, Requirement, RunMetric
 from cosim.verify.sequential import (
@@ -88,13 +88,16 @@ class RequirementPlan:
         Runs in total to decide at ``confidence`` with probability ``ADVICE_SHARE`` (the
         pilot's runs included; None: not by the cap, or cannot plan).
     verdict : str
-        The likelier verdict of a campaign of ``runs`` runs.
+        The decision a campaign of ``runs`` runs is aimed at.
     sequential_runs : int or None
         Runs ``verify --until-decided`` takes on typical runs (None: not by its cap).
     note : str
         Why it cannot be planned, or failed pilot runs.
     interval : tuple of float or None
         The pilot's confidence bounds of the statistic (``estimate``'s unit), if any.
+    promised : bool
+        False when the pilot cannot exclude a true value at the limit: ``runs`` then holds
+        only for a true value equal to the pilot's estimate (docs/statistics.md).
     """
 
     id: str
@@ -109,6 +112,7 @@ class RequirementPlan:
     sequential_runs: int | None
     note: str = ""
     interval: tuple[float, float] | None = None
+    promised: bool = True
 
 
 @dataclass
@@ -276,6 +280,7 @@ def plan_requirement(
         )  # fmt: skip
     values = np.array([m.value for m in used], dtype=float)
     estimate, limit, unit = _estimate(req, values)
+    promised = True
     if pilot_verdict.verdict != UNDECIDED:  # the fewest first runs that decide it
         runs = next(
             n for n in range(1, len(metrics) + 1)
@@ -285,8 +290,9 @@ def plan_requirement(
     else:
         runs = pilot_verdict.details.get("runs_to_decide")
         verdict = pilot_verdict.details.get("verdict_then", UNDECIDED)
-        if runs is None:
-            tip = pilot_verdict.reason.rsplit("; ", 1)[-1]
+        promised = bool(pilot_verdict.details.get("runs_promised"))
+        if runs is None or not promised:
+            tip = pilot_verdict.details["advice"]
             note = f"{note}; {tip}" if note else tip
         elif runs > cap:
             runs, verdict = None, UNDECIDED
@@ -299,7 +305,7 @@ def plan_requirement(
     return RequirementPlan(
         **base, estimate=estimate, limit=limit, unit=unit,
         pilot_verdict=pilot_verdict.verdict, runs=runs, verdict=verdict,
-        sequential_runs=seq, note=note, interval=pilot_verdict.interval,
+        sequential_runs=seq, note=note, interval=pilot_verdict.interval, promised=promised,
     )  # fmt: skip
 
 
@@ -424,6 +430,8 @@ def format_plan(plan: Plan) -> str:
     rows = []
     for p in plan.requirements:
         runs = f"> {plan.cap}" if p.runs is None else str(p.runs)
+        if p.runs is not None and not p.promised:
+            runs = f"({p.runs})"
         wall = "-" if p.runs is None else format_duration(plan.wall_time(p.runs))
         if plan.looks is None:
             seq = ""
@@ -447,9 +455,12 @@ def format_plan(plan: Plan) -> str:
             lines.append(f"note: {p.id}: {p.note}")
     lines.append(
         f"runs to decide: the runs in total, the pilot's included, at which the campaign is "
-        f"decided with probability {100 * ADVICE_SHARE:g} % as predicted from the pilot (what "
+        f"decided with probability {100 * ADVICE_SHARE:g} % for a true value at or beyond the "
+        f"pilot's one-sided {100 * PROMISE_LEVEL:g} % bound (what "
         f"`verify --runs {plan.pilot}` advises on the same runs; docs/statistics.md); for a "
-        f"requirement the pilot decides, the fewest of its first runs that decide it. The "
+        f"requirement the pilot decides, the fewest of its first runs that decide it; (N): the "
+        f"pilot cannot exclude a true value at the limit, N holds only if the truth is as "
+        f"far from it as the pilot's estimate (note). The "
         f"pilot's value is itself uncertain (pilot bounds: its confidence bounds at the "
         f"requirement's confidence)."
     )

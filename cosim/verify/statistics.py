@@ -114,6 +114,8 @@ def judge(
         verdict.details["runs_to_decide"] = tip.runs
         verdict.details["runs_advice"] = tip.method
         verdict.details["verdict_then"] = tip.verdict
+        verdict.details["runs_promised"] = tip.promised
+        verdict.details["advice"] = tip.text()
         verdict.reason += f"; {tip.text()}"
         verdict.claim += f"; {tip.text()}"
     return verdict
