@@ -17,8 +17,8 @@ import pytest
 from scipy.stats import chi2
 
 import cosim
-from cosim.reproduce import seed003
 from cosim.models.constants import ARCMIN, DEG
+from cosim.reproduce import seed003
 
 ROOT = Path(__file__).resolve().parent.parent
 SWAY = ROOT / "scenarios" / "sins_north_finding_sway.toml"

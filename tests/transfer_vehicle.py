@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 
 import cosim
-from cosim.scenario import build_master
 from cosim.models.constants import ARCMIN
+from cosim.scenario import build_master
 
 SCENARIO = Path(__file__).resolve().parents[1] / "scenarios" / "transfer_alignment_vehicle.toml"
 #: The slave's true mounting in the scenario (LeverArm.mount_rpy) [deg].

@@ -29,8 +29,8 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from cosim.interop.modeldocs import NOTES_MARKER, notes_of, rst_to_markdown
-from cosim.units import conversion_factor
 from cosim.models.block import Block, Var
+from cosim.units import conversion_factor
 
 ROOT = Path(__file__).resolve().parents[2]
 DOCS_DIR = ROOT / "docs" / "filters"
