@@ -46,7 +46,10 @@ from cosim.verify.requirements import DEFAULT_CONFIDENCE, Requirement, RunMetric
 DEFAULT_FALSE_ALARM = 0.01
 """Per-run false-alarm rate of the automatic check (all signals and windows together)."""
 DEFAULT_WINDOWS = 10
-"""Windows a signal's span is cut into when no window length is given."""
+"""Windows a signal's span is cut into when no window length is given ..."""
+MIN_SAMPLES = 10
+"""... fewer when the span has fewer than this many samples per window (at least one)."""
+MAX_SPANS_SHOWN = 3
 DEFAULT_PASS_PROBABILITY = 0.95
 """Pass rate a campaign must show for a ``consistent`` requirement (statistic pass_rate)."""
 KINDS = ("nis", "nees")
@@ -171,7 +174,9 @@ class SignalCheck:
         what += f", {self.samples} samples, {len(self.windows)} windows)"
         if not self.spans:
             return f"{what}: consistent"
-        return f"{what}: INCONSISTENT: " + "; ".join(s.message() for s in self.spans)
+        shown = "; ".join(s.message() for s in self.spans[:MAX_SPANS_SHOWN])
+        more = len(self.spans) - MAX_SPANS_SHOWN
+        return f"{what}: INCONSISTENT: {shown}" + (f" (and {more} more spans)" if more > 0 else "")
 
     def to_dict(self) -> dict[str, Any]:
         """Plain data for JSON."""
@@ -248,7 +253,8 @@ def _prepare(
             "no sample: the output stayed 0 in the judged span (the filter never updated, "
             "or publishes no NIS, as the HRG UPF)"
         )
-    edges = window_edges(float(t[0]), float(t[-1]), window, DEFAULT_WINDOWS)
+    windows = max(1, min(DEFAULT_WINDOWS, t.size // MIN_SAMPLES))
+    edges = window_edges(float(t[0]), float(t[-1]), window, windows)
     return _Prepared(column, kind, t, v, d, dof_text, edges)
 
 
@@ -322,7 +328,8 @@ def check_run(
     false_alarm : float
         Per-run false-alarm rate, split equally over all judged windows.
     window : float, optional
-        Window length [s] (default: each signal's span cut into 10 windows).
+        Window length [s] (default: each span cut into 10 windows, fewer below 10 samples
+        per window).
     start : float, optional
         Judge from this time on [s].
 
@@ -399,7 +406,7 @@ class ConsistencyRequirement(Requirement):
     false_alarm : float
         Probability that a consistent filter fails one run.
     window : float or None
-        Window length [s]; None: the span cut into 10 windows.
+        Window length [s]; None: the span cut into 10 windows (fewer below 10 samples each).
     """
 
     kind: str = "nis"
@@ -414,7 +421,7 @@ class ConsistencyRequirement(Requirement):
 
     def describe(self) -> str:
         """The per-run criterion in words."""
-        span = f"{self.window:g} s windows" if self.window else f"{DEFAULT_WINDOWS} windows"
+        span = f"{self.window:g} s windows" if self.window else f"up to {DEFAULT_WINDOWS} windows"
         lo = f" from {self.start:g} s" if self.start is not None else ""
         hi = f" until {self.until:g} s" if self.until is not None else ""
         return (
