@@ -146,11 +146,15 @@ def test_pass_rate_advice_counts_the_runs_made() -> None:
     # on_failure = "undecided": no number of runs decides while a run failed
     stuck = judge(req(statistic="pass_rate", probability=0.8), counted(19, 19) + [None])
     assert stuck.details["runs_to_decide"] is None and "no number of runs" in stuck.reason
-    # 18/20: the 80 % lower bound 0.798 < 0.8, no promise; N for a true rate of 0.9
+    # 18/20: the 80 % lower bound 0.798 < 0.8, no promise; N for a true rate of 0.9 (the
+    # estimate), again the fewest by the exact sum
     open_ = judge(r, counted(18, 20))
     assert not open_.details["runs_promised"]
     assert "the pilot cannot exclude a true pass rate at the limit" in open_.reason
     assert "only if the true pass rate is 0.9 or more (the pilot's estimate)" in open_.reason
+    t = open_.details["runs_to_decide"]  # the fewest N deciding 80 % at a true 0.9
+    assert count_hits(r, 18, t, t - 20, 0.9)[0] >= SHARE
+    assert all(count_hits(r, 18, u, u - 20, 0.9)[0] < SHARE for u in range(21, t))
 
 
 CASES = [

@@ -134,7 +134,7 @@ def test_plan_prints_runs_and_time_per_requirement(tmp_path: Path) -> None:
     ]
     assert a[9].startswith("10 runs, ") and b[9].startswith("40 runs, "), (a, b)
     assert "note: RATE-85: the pilot cannot exclude a true pass rate at the limit" in out
-    assert "only if the true pass rate is 1 or more (the pilot's estimate)" in out
+    assert "only if the true pass rate is 1 (the pilot's estimate)" in out
     assert b[8].endswith((" s", " min")) and float(b[8].split()[0]) > 0
     assert "--until-decided --runs 10 --max-runs 80" in out.replace("\n", " ")
     assert not list(tmp_path.glob("ins-cosim-plan-*")), "the pilot folder is removed"

@@ -267,6 +267,8 @@ class _Truth:
         """``"0.83 or more"`` / ``"7.1 arcmin or less"``: values at least as far."""
         up = self.higher_is_better == (self.side == SATISFIED)
         unit = "" if self.unit in ("", "1") else f" {self.unit}"
+        if self.unit == "1" and value == (1.0 if up else 0.0):  # nothing lies beyond
+            return f"{value:g}"
         return f"{value:.4g}{unit} or {'more' if up else 'less'}"
 
     @property
