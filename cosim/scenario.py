@@ -343,9 +343,8 @@ class Scenario:
         for pname, raw in spec.parameters.items():
             key = f"blocks.{spec.name}.parameters.{pname}"
             scalars = expand(host, pname)
-            settable = base_names(
-                [v.name for v in host.variables.values() if v.causality in ("parameter", "input")]
-            )
+            kinds = ("parameter", "input")
+            settable = base_names([v.name for v in host.variables.values() if v.causality in kinds])
             tip = did_you_mean(pname, settable)
             if not scalars:
                 raise self.error(
@@ -354,7 +353,7 @@ class Scenario:
                     key=key,
                 )
             var0 = scalars[0]
-            if var0.causality not in ("parameter", "input"):
+            if var0.causality not in kinds:
                 raise self.error(
                     f"'{spec.name}.{pname}' is an {var0.causality}; only parameters and "
                     f"inputs can be set.{tip}",

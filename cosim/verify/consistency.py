@@ -397,8 +397,8 @@ class ConsistencyRequirement(Requirement):
     absolute, wrap, statistic, statistic_text, k, probability, confidence : object
         As in :class:`~cosim.verify.requirements.Requirement` (``statistic`` is
         ``"pass_rate"`` or ``"max"``).
-    assume, on_failure, factors, index : object
-        As in :class:`~cosim.verify.requirements.Requirement`.
+    assume, on_failure, factors, index, reference : object
+        As in :class:`~cosim.verify.requirements.Requirement` (``reference`` is unused).
     kind : str
         ``"nis"`` (white samples) or ``"nees"`` (any dependence).
     dof : float or None
