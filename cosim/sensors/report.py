@@ -41,6 +41,7 @@ from cosim.sensors.characterize import (
     TERMS,
     AxisFit,
     Grade,
+    allantools_module,
     closest_grade,
     fit_axis,
 )
@@ -195,7 +196,10 @@ def characterize_log(
     ------
     LogError
         The log fails a check, has no sensor column, or has fewer than 16 samples.
+    UserError
+        allantools (the ``allan`` extra) is not installed: said before the log is read.
     """
+    allantools_module()
     log = ImuLog(
         path,
         sample_rate=sample_rate,
