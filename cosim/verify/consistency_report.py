@@ -8,9 +8,7 @@ names every flagged run with the spans where its filter is off (docs/consistency
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 from typing import Any
 
 import matplotlib
@@ -24,7 +22,7 @@ from cosim.verify.consistency import (  # noqa: E402
     DEFAULT_FALSE_ALARM,
     ConsistencyRequirement,
 )
-from cosim.verify.figure_parts import campaign_histories, verdict_title  # noqa: E402
+from cosim.verify.figure_parts import campaign_histories, png_base64, verdict_title  # noqa: E402
 from cosim.verify.requirements import Requirement, Verdict  # noqa: E402
 
 _MAX_LINES = 40
@@ -111,11 +109,7 @@ def consistency_figure(campaign: Any, req: Requirement, verdict: Verdict) -> str
     -------
     str
     """
-    fig = build_consistency_figure(campaign, req, verdict)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
-    plt.close(fig)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
+    return png_base64(build_consistency_figure(campaign, req, verdict))
 
 
 def consistency_html(campaign: Any, req: Requirement) -> str:

@@ -4,6 +4,8 @@ colour and title, the completed runs' recorded histories, and the judged time sp
 
 from __future__ import annotations
 
+import base64
+import io
 from typing import Any
 
 import matplotlib
@@ -22,6 +24,28 @@ from cosim.verify.requirements import (  # noqa: E402
 
 #: Verdict -> its colour in the figures and the HTML report.
 VERDICT_COLOURS = {SATISFIED: "#1a7f37", VIOLATED: "#cf222e", UNDECIDED: "#9a6700"}
+
+
+def png_base64(fig: plt.Figure) -> str:
+    """A figure as base64 PNG text for an HTML ``img``, and the figure closed.
+
+    No "Software" text chunk is written: the file then holds no URL, not even inside
+    the PNG.
+
+    Parameters
+    ----------
+    fig : matplotlib.figure.Figure
+        The figure (closed on return).
+
+    Returns
+    -------
+    str
+        The PNG bytes (90 dpi), base64-encoded.
+    """
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=90, metadata={"Software": None})
+    plt.close(fig)
+    return base64.b64encode(buf.getvalue()).decode("ascii")
 
 
 def verdict_title(fig: plt.Figure, req: Requirement, verdict: Verdict) -> None:

@@ -16,7 +16,6 @@ and the software versions.
 
 from __future__ import annotations
 
-import base64
 import html
 import io
 import json
@@ -45,6 +44,7 @@ from cosim.verify.figure_parts import (  # noqa: E402  (judged_window: report AP
     VERDICT_COLOURS,
     campaign_histories,
     judged_window,
+    png_base64,
     verdict_title,
 )
 from cosim.verify.records import write_atomic  # noqa: E402
@@ -250,14 +250,6 @@ def _trace_items(campaign: Campaign) -> list[tuple[str, Any]]:
 
 
 # ----------------------------------------------------------------------------- plots
-def _png(fig: plt.Figure) -> str:
-    buf = io.BytesIO()
-    # No "Software" text chunk: the file then holds no URL, not even inside the PNG.
-    fig.savefig(buf, format="png", dpi=90, metadata={"Software": None})
-    plt.close(fig)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
-
-
 def window_curves(
     t: np.ndarray, e: np.ndarray, s: np.ndarray, window: tuple[float, float]
 ) -> dict[str, np.ndarray]:
@@ -500,7 +492,7 @@ def requirement_figure(campaign: Campaign, req: Requirement, verdict: Verdict) -
     """
     if req.criterion == "consistent":
         return consistency_figure(campaign, req, verdict)
-    return _png(build_requirement_figure(campaign, req, verdict))
+    return png_base64(build_requirement_figure(campaign, req, verdict))
 
 
 # ------------------------------------------------------------------------------ HTML
