@@ -8,7 +8,9 @@ noise: R ten times too small, the innovation sigma sqrt(10) = 3.2 times too smal
 
 from __future__ import annotations
 
+import base64
 import json
+import re
 from pathlib import Path
 
 import pytest
@@ -92,6 +94,10 @@ def test_verify_flags_the_mistuned_filter_in_every_report(cli, tmp_path: Path) -
     assert "align.nis: INCONSISTENT: flagged in 3 of 3 runs" in res.out
     assert '<h2 id="consistency">Filter consistency</h2>' in html
     assert 'data-column="align.nis" data-verdict="inconsistent"' in html
+    # the embedded figures carry no Software chunk (no URL inside the PNG)
+    pngs = re.findall(r"data:image/png;base64,([A-Za-z0-9+/=]+)", html)
+    assert pngs  # the NIS requirement's figure, drawn by consistency_report
+    assert not [p for p in pngs if b"Software" in base64.b64decode(p)]
 
 
 def test_a_bad_key_is_one_line_naming_file_and_key(cli, tmp_path: Path) -> None:

@@ -208,13 +208,7 @@ class TransferFilter:
             Master latitude [rad] and height [m].
         """
         lay = self.layout
-        v_lr = c_b_n @ cross(w_eb_b, self._r0)
-        c_start = c_b_n if self.c_nom is None else c_b_n @ self.c_nom
-        self.nav = make_strapdown(c_start, lat, height, v_m + v_lr, options=MOVING_BASE)
-        self._compiled = isinstance(self.nav, CompiledStrapdown)
-        self._sums = PeriodSums(lat=lat, height=self.nav.height)
-        m0 = flexure_matrix(c_b_n, w_eb_b, self._R0) if lay.flexure else None
-        self._m_prev = m0
+        m0 = self._start_nav(c_b_n, w_eb_b, v_m, lat, height)
         k = int(self.settings.hypotheses)
         bank = UnscentedParticleFilter(
             lay.n,
@@ -236,6 +230,20 @@ class TransferFilter:
         self._best = 0
         self._show_bank()
         self.stage = 1.0
+
+    def _start_nav(
+        self, c_b_n: FloatArray, w_eb_b: FloatArray, v_m: FloatArray, lat: float, height: float
+    ) -> FloatArray | None:
+        """Start the mechanisation on ``C_b_n`` (times ``C_nom`` if set) and the period sums;
+        return the flexure matrix at the start, shape (3, 6) (None without flexure)."""
+        v_lr = c_b_n @ cross(w_eb_b, self._r0)
+        c_start = c_b_n if self.c_nom is None else c_b_n @ self.c_nom
+        self.nav = make_strapdown(c_start, lat, height, v_m + v_lr, options=MOVING_BASE)
+        self._compiled = isinstance(self.nav, CompiledStrapdown)
+        self._sums = PeriodSums(lat=lat, height=self.nav.height)
+        m0 = flexure_matrix(c_b_n, w_eb_b, self._R0) if self.layout.flexure else None
+        self._m_prev = m0
+        return m0
 
     def step(self, dtheta: FloatArray, dv: FloatArray, h: float) -> None:
         """Mechanise one pair of slave increments and add them to the period sums.
@@ -274,16 +282,7 @@ class TransferFilter:
             Master velocity, NED [m/s].
         """
         sd, lay, st = self.nav, self.layout, self.settings
-        sums = self._sums
-        if self._compiled:
-            sd.sums_into(sums)
-        T = sums.T
-        m1 = None
-        if lay.flexure:
-            m1 = flexure_matrix(c_b_n, w_eb_b, self._R0)
-            sums.m0, sums.m1 = self._m_prev, m1
-            sums.phi_flex = self._flex(T)[0]
-            self._m_prev = m1
+        sums, T, m1 = self._close_period(c_b_n, w_eb_b)
         Q = self.process_noise(T, m1)
         R = self.tuning.r_vel**2 * _I3
         z = sd.v_n - v_m - c_b_n @ cross(w_eb_b, self._r0)
@@ -323,6 +322,32 @@ class TransferFilter:
         self.P_show = ukf.P
         self._new_period()
 
+    def _close_period(
+        self, c_b_n: FloatArray, w_eb_b: FloatArray
+    ) -> tuple[PeriodSums, float, FloatArray | None]:
+        """Close the period's sums (with the flexure matrices at its ends).
+
+        Returns
+        -------
+        sums : PeriodSums
+            The period's sums.
+        T : float
+            The period [s].
+        m1 : ndarray, shape (3, 6), or None
+            Flexure matrix at the period's end (None without flexure).
+        """
+        sums = self._sums
+        if self._compiled:
+            self.nav.sums_into(sums)
+        T = sums.T
+        m1 = None
+        if self.layout.flexure:
+            m1 = flexure_matrix(c_b_n, w_eb_b, self._R0)
+            sums.m0, sums.m1 = self._m_prev, m1
+            sums.phi_flex = self._flex(T)[0]
+            self._m_prev = m1
+        return sums, T, m1
+
     def _new_period(self) -> None:
         """Refresh the mechanisation's constants and restart the period sums."""
         sd = self.nav
@@ -339,15 +364,69 @@ class TransferFilter:
         :meth:`update` in the period's own call; this stays the numpy path and the
         readable statement.
         """
+        self._correct_nav(x, m1)
+        J = reset_jacobian(x, self.layout)
+        P = J @ P @ J.T
+        return 0.5 * (P + P.T)
+
+    def _correct_nav(self, x: FloatArray, m1: FloatArray | None) -> FloatArray:
+        """Wrap the heading of ``x`` (in place) and correct the mechanisation with it.
+
+        Parameters
+        ----------
+        x : ndarray, shape (n,)
+            Error state (the base layout's states first).
+        m1 : ndarray, shape (3, 6), or None
+            Flexure matrix at the period's end (None without flexure).
+
+        Returns
+        -------
+        ndarray, shape (3,)
+            The velocity correction applied, NED [m/s].
+        """
         lay, sd = self.layout, self.nav
         x[lay.heading] = wrap_angle(x[lay.heading])
         d_v = x[lay.dv] - (m1 @ x[lay.xi] if lay.flexure else 0.0)
         sd.correct(rotation=euler_to_dcm(x[lay.att]).T, d_v=d_v, d_lat=float(x[lay.dl]))
         sd.accel_bias = sd.accel_bias + x[lay.nabla]
         sd.gyro_bias = sd.gyro_bias + x[lay.eps]
-        J = reset_jacobian(x, lay)
-        P = J @ P @ J.T
-        return 0.5 * (P + P.T)
+        return d_v
+
+    def _forget(self, P: FloatArray, m1: FloatArray | None, blocks: list[slice]) -> FloatArray:
+        """Reset ``blocks`` of ``P`` to their prior, uncorrelated with the rest.
+
+        The reset is made in the slave-velocity form ``dv = dV - M xi`` (the flexure
+        states' prior is stated in it), then ``P`` is turned back.
+
+        Parameters
+        ----------
+        P : ndarray, shape (m, m)
+            Covariance, the base layout's states first (``m >= n``).
+        m1 : ndarray, shape (3, 6), or None
+            Flexure matrix at the period's end (None without flexure).
+        blocks : list of slice
+            The base layout's blocks to reset.
+
+        Returns
+        -------
+        ndarray, shape (m, m)
+        """
+        lay = self.layout
+        m = P.shape[0]
+        S_inv = np.eye(m)
+        if lay.flexure:
+            S_inv[lay.dv, lay.xi] = -m1
+        P = S_inv @ P @ S_inv.T
+        P0 = self.tuning.P0(lay, float(self.nav.lat))
+        for blk in blocks:
+            P[blk, :] = 0.0
+            P[:, blk] = 0.0
+            P[blk, blk] = P0[blk, blk]
+        if lay.flexure:
+            S = np.eye(m)
+            S[lay.dv, lay.xi] = m1
+            P = S @ P @ S.T
+        return P
 
     def _restart_fine(self, m1: FloatArray | None) -> None:
         """End the acquisition (stage 1) and start the fine alignment (stage 2).
@@ -361,28 +440,17 @@ class TransferFilter:
         variance is increased by ``relevel_sigma^2``: stage 2, quasi-linear, splits
         tilt and bias afresh. Stage 2 is a single UKF with the same model.
         """
-        lay, sd = self.layout, self.nav
+        lay = self.layout
         n = lay.n
         x = self._bank.particles[self._best].copy()
         x[lay.nabla] = 0.0  # discarded: not fed back
         x[lay.eps] = 0.0
         P = self._feedback(x, self._bank.particle_P[self._best], m1)
-        S_inv = np.eye(n)
-        if lay.flexure:
-            S_inv[lay.dv, lay.xi] = -m1
-        P = S_inv @ P @ S_inv.T
-        P0 = self.tuning.P0(lay, float(sd.lat))
         blocks = [lay.nabla, lay.eps] + ([lay.xi] if lay.flexure else [])
-        for blk in blocks:
-            P[blk, :] = 0.0
-            P[:, blk] = 0.0
-            P[blk, blk] = P0[blk, blk]
+        P = self._forget(P, m1, blocks)
+        # level rows and columns: the velocity form's transform does not touch them
         P[4, 4] += self.settings.relevel_sigma**2
         P[5, 5] += self.settings.relevel_sigma**2
-        if lay.flexure:
-            S = np.eye(n)
-            S[lay.dv, lay.xi] = m1
-            P = S @ P @ S.T
         ukf = UnscentedKalmanFilter(
             n,
             3,

@@ -69,14 +69,12 @@ from collections import deque
 import numpy as np
 from numpy.typing import NDArray
 
-from cosim.alignment.nav import MOVING_BASE, euler_rate_matrix_inv
-from cosim.alignment.nav_compiled import CompiledStrapdown, make_strapdown
+from cosim.alignment.nav import euler_rate_matrix_inv
 from cosim.alignment.transfer_filter import StageSettings, TransferFilter
 from cosim.alignment.transfer_model import (
     PeriodSums,
     StateLayout,
     TransferTuning,
-    flexure_matrix,
     reset_jacobian,
 )
 from cosim.estimation import (
@@ -92,7 +90,6 @@ from cosim.models.conventions import (
     dcm_to_rotvec,
     euler_to_dcm,
     rotvec_to_dcm,
-    wrap_angle,
 )
 
 FloatArray = NDArray[np.float64]
@@ -291,12 +288,7 @@ class MatchingFilter(TransferFilter):
             Master latitude [rad] and height [m].
         """
         lay = self.layout
-        v_lr = c_b_n @ cross(w_eb_b, self._r0)
-        self.nav = make_strapdown(c_b_n @ self.c_nom, lat, height, v_m + v_lr, options=MOVING_BASE)
-        self._compiled = isinstance(self.nav, CompiledStrapdown)
-        self._sums = PeriodSums(lat=lat, height=self.nav.height)
-        m0 = flexure_matrix(c_b_n, w_eb_b, self._R0) if lay.flexure else None
-        self._m_prev = m0
+        m0 = self._start_nav(c_b_n, w_eb_b, v_m, lat, height)
         ukf = UnscentedKalmanFilter(
             self.n,
             self.dim_z,
@@ -400,20 +392,11 @@ class MatchingFilter(TransferFilter):
         v_m : ndarray, shape (3,)
             Master velocity, NED [m/s].
         """
-        sd, lay = self.nav, self.layout
+        lay = self.layout
         w_nb_n = self.body_rate_n()
         if len(self._c_hist) == 3:  # the master's rate from the slave's gyros (docstring)
             w_eb_b = c_b_n.T @ w_nb_n
-        sums = self._sums
-        if self._compiled:
-            sd.sums_into(sums)
-        T = sums.T
-        m1 = None
-        if lay.flexure:
-            m1 = flexure_matrix(c_b_n, w_eb_b, self._R0)
-            sums.m0, sums.m1 = self._m_prev, m1
-            sums.phi_flex = self._flex(T)[0]
-            self._m_prev = m1
+        sums, T, m1 = self._close_period(c_b_n, w_eb_b)
         n0 = lay.n
         Q = np.zeros((self.n, self.n))
         Q[:n0, :n0] = self.process_noise(T, m1)
@@ -431,16 +414,12 @@ class MatchingFilter(TransferFilter):
         )
         self.nis = float(ukf.y @ np.linalg.solve(ukf.S, ukf.y))
         x = ukf.x.copy()
-        x[lay.heading] = wrap_angle(x[lay.heading])
-        d_v = x[lay.dv] - (m1 @ x[lay.xi] if lay.flexure else 0.0)
-        sd.correct(rotation=euler_to_dcm(x[lay.att]).T, d_v=d_v, d_lat=float(x[lay.dl]))
+        d_v = self._correct_nav(x, m1)
         for v in self._v_hist:
             v -= d_v
         turn = euler_to_dcm(x[lay.att]).T
         for c in self._c_hist:
             c[...] = turn @ c
-        sd.accel_bias = sd.accel_bias + x[lay.nabla]
-        sd.gyro_bias = sd.gyro_bias + x[lay.eps]
         J = np.eye(self.n)
         J[:n0, :n0] = reset_jacobian(x[:n0], lay)
         P = J @ ukf.P @ J.T
@@ -472,20 +451,7 @@ class MatchingFilter(TransferFilter):
         estimate is kept: the attitude residual's rate measures it directly.
         """
         lay, ukf, sd = self.layout, self._ukf, self.nav
-        P = ukf.P.copy()
-        P0 = self.tuning.P0(lay, float(sd.lat))
-        S_inv = np.eye(self.n)
-        if lay.flexure:
-            S_inv[lay.dv, lay.xi] = -self._m_prev
-        P = S_inv @ P @ S_inv.T  # slave-velocity form dv = dV - M xi
-        for blk in (lay.nabla,):
-            P[blk, :] = 0.0
-            P[:, blk] = 0.0
-            P[blk, blk] = P0[blk, blk]
-        S = np.eye(self.n)
-        if lay.flexure:
-            S[lay.dv, lay.xi] = self._m_prev
-        P = S @ P @ S.T
+        P = self._forget(ukf.P.copy(), self._m_prev, [lay.nabla])
         sd.accel_bias = np.array(self._bias0[0])
         add = [self.settings.relevel_sigma] * 2 + [self.tuning.p0_heading]
         for k, sigma in enumerate(add):

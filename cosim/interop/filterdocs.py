@@ -28,7 +28,13 @@ import tomllib
 from collections.abc import Sequence
 from pathlib import Path
 
-from cosim.interop.modeldocs import NOTES_MARKER, notes_of, rst_to_markdown
+from cosim.interop.modeldocs import (
+    NOTES_MARKER,
+    page_text,
+    rst_to_markdown,
+    stale_pages,
+    write_or_check,
+)
 from cosim.models.block import Block, Var
 from cosim.units import conversion_factor
 
@@ -187,9 +193,7 @@ def render(cls: type[Block], name: str, notes: str = "") -> str:
         "",
         NOTES_MARKER,
     ]
-    text = "\n".join(parts) + "\n"
-    notes = notes.strip("\n")
-    return text + ("\n" + notes + "\n" if notes else "")
+    return page_text(parts, notes)
 
 
 def outdated(docs_dir: Path = DOCS_DIR) -> dict[str, str]:
@@ -205,13 +209,7 @@ def outdated(docs_dir: Path = DOCS_DIR) -> dict[str, str]:
     dict of str to str
         Filter name -> its up-to-date page text, for every missing or stale page.
     """
-    stale = {}
-    for name, cls in filter_blocks().items():
-        page = docs_dir / f"{name}.md"
-        text = render(cls, name, notes_of(page))
-        if not page.is_file() or page.read_text(encoding="utf-8") != text:
-            stale[name] = text
-    return stale
+    return stale_pages(filter_blocks(), docs_dir, lambda name, cls, notes: render(cls, name, notes))
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -228,17 +226,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         0 when every page is up to date (or was rewritten); 1 for ``--check`` with stale
         pages.
     """
-    args = list(sys.argv[1:] if argv is None else argv)
-    stale = outdated()
-    if "--check" in args:
-        for name in stale:
-            print(f"docs/filters/{name}.md is out of date: python -m cosim.interop.filterdocs")
-        return 1 if stale else 0
-    DOCS_DIR.mkdir(parents=True, exist_ok=True)
-    for name, text in stale.items():
-        (DOCS_DIR / f"{name}.md").write_text(text, encoding="utf-8")
-        print(f"wrote docs/filters/{name}.md")
-    return 0
+    return write_or_check(argv, outdated(), DOCS_DIR, "docs/filters", "cosim.interop.filterdocs")
 
 
 if __name__ == "__main__":

@@ -20,7 +20,7 @@ from __future__ import annotations
 import inspect
 import re
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 
 from cosim import models
@@ -238,6 +238,24 @@ def render(cls: type[Block], notes: str = "") -> str:
         "",
         NOTES_MARKER,
     ]
+    return page_text(parts, notes)
+
+
+def page_text(parts: Sequence[str], notes: str) -> str:
+    """A generated page: its lines, then the hand-written notes kept from the old page.
+
+    Parameters
+    ----------
+    parts : sequence of str
+        The generated lines, the last :data:`NOTES_MARKER`.
+    notes : str
+        The notes (from :func:`notes_of`; blank lines around them are dropped).
+
+    Returns
+    -------
+    str
+        The Markdown page, ending with a newline.
+    """
     text = "\n".join(parts) + "\n"
     notes = notes.strip("\n")
     return text + ("\n" + notes + "\n" if notes else "")
@@ -276,10 +294,34 @@ def outdated(docs_dir: Path = DOCS_DIR) -> dict[str, str]:
     dict of str to str
         Model name -> its up-to-date page text, for every page that is missing or stale.
     """
+    return stale_pages(models.truth_models(), docs_dir, lambda name, cls, notes: render(cls, notes))
+
+
+def stale_pages(
+    blocks: Mapping[str, type[Block]],
+    docs_dir: Path,
+    render_page: Callable[[str, type[Block], str], str],
+) -> dict[str, str]:
+    """The pages ``<docs_dir>/<name>.md`` that are missing or differ from their block's.
+
+    Parameters
+    ----------
+    blocks : mapping of str to Block subclass
+        Page name -> its block class.
+    docs_dir : Path
+        Folder of the pages.
+    render_page : callable ``render_page(name, cls, notes) -> str``
+        The page of one block, with the notes kept from its old page.
+
+    Returns
+    -------
+    dict of str to str
+        Name -> its up-to-date page text, for every missing or stale page.
+    """
     stale = {}
-    for name, cls in models.truth_models().items():
+    for name, cls in blocks.items():
         page = docs_dir / f"{name}.md"
-        text = render(cls, notes_of(page))
+        text = render_page(name, cls, notes_of(page))
         if not page.is_file() or page.read_text(encoding="utf-8") != text:
             stale[name] = text
     return stale
@@ -299,15 +341,42 @@ def main(argv: Sequence[str] | None = None) -> int:
         0 when every page is up to date (or was rewritten), 1 for ``--check`` with stale
         pages.
     """
+    return write_or_check(argv, outdated(), DOCS_DIR, "models/docs", "cosim.interop.modeldocs")
+
+
+def write_or_check(
+    argv: Sequence[str] | None, stale: Mapping[str, str], docs_dir: Path, shown: str, module: str
+) -> int:
+    """Write the stale pages, or with ``--check`` in ``argv`` name them (the generators' main).
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        Command-line arguments (``--check``); None for ``sys.argv[1:]``.
+    stale : mapping of str to str
+        Page name -> its up-to-date text (from :func:`stale_pages`).
+    docs_dir : Path
+        Folder of the pages (made when missing).
+    shown : str
+        The folder as the messages name it (``models/docs``).
+    module : str
+        The generator, for ``python -m <module>`` in the messages.
+
+    Returns
+    -------
+    int
+        0 when every page is up to date (or was rewritten), 1 for ``--check`` with stale
+        pages.
+    """
     args = list(sys.argv[1:] if argv is None else argv)
-    stale = outdated()
     if "--check" in args:
         for name in stale:
-            print(f"models/docs/{name}.md is out of date: python -m cosim.interop.modeldocs")
+            print(f"{shown}/{name}.md is out of date: python -m {module}")
         return 1 if stale else 0
+    docs_dir.mkdir(parents=True, exist_ok=True)
     for name, text in stale.items():
-        (DOCS_DIR / f"{name}.md").write_text(text, encoding="utf-8")
-        print(f"wrote models/docs/{name}.md")
+        (docs_dir / f"{name}.md").write_text(text, encoding="utf-8")
+        print(f"wrote {shown}/{name}.md")
     return 0
 
 

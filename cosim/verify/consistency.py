@@ -42,6 +42,7 @@ from cosim.estimation.consistency import (
 from cosim.results import RunResult
 from cosim.units import to_unit
 from cosim.verify.requirements import DEFAULT_CONFIDENCE, Requirement, RunMetric
+from cosim.verify.table_keys import TableError, check_keys, fraction, table_error
 
 DEFAULT_FALSE_ALARM = 0.01
 """Per-run false-alarm rate of the automatic check (all signals and windows together)."""
@@ -512,30 +513,10 @@ def parse_consistency(
         Naming the file and ``requirements[i].<key>``, and the fix.
     """
 
-    def err(message: str, key: str | None = None) -> ScenarioError:
-        rid = table.get("id")
-        label = f"requirement '{rid}': " if isinstance(rid, str) else ""
-        where = f"requirements[{i}]" + (f".{key}" if key else "")
-        return ScenarioError(label + message, file=file, key=where)
-
-    for k in table:
-        if k not in CONSISTENT_KEYS:
-            hint = difflib.get_close_matches(k, CONSISTENT_KEYS, n=1)
-            tip = f" Did you mean '{hint[0]}'?" if hint else ""
-            raise err(
-                f"unknown key '{k}' for criterion 'consistent'.{tip} Allowed: "
-                f"{', '.join(sorted(CONSISTENT_KEYS))}",
-                k,
-            )
-    for k in ("id", "signal"):
-        if k not in table:
-            raise err(f"missing '{k}'", k)
-    rid = table["id"]
-    if not isinstance(rid, str) or not rid.strip():
-        raise err(f"expected a non-empty string, got {rid!r}", "id")
-    text = table.get("text", "")
-    if not isinstance(text, str):
-        raise err(f"expected a string, got {text!r}", "text")
+    err = table_error(table, i, file)
+    rid, text = check_keys(
+        table, CONSISTENT_KEYS, ("id", "signal"), err, " for criterion 'consistent'"
+    )
     signal = table["signal"]
     if not isinstance(signal, str) or signal.strip() not in units:
         recorded = [c for c in units if statistic_kind(c)]
@@ -615,7 +596,7 @@ def parse_consistency(
     if failure not in ("undecided", "exclude", "fail"):
         raise err(f"expected 'undecided', 'exclude' or 'fail', got {failure!r}", "on_failure")
     return ConsistencyRequirement(
-        id=rid.strip(),
+        id=rid,
         text=text,
         signal=signal,
         minus=None,
@@ -638,16 +619,8 @@ def parse_consistency(
     )
 
 
-def _fraction(table: dict[str, Any], key: str, default: float, err: Any) -> float:
-    value = table.get(key, default)
-    if isinstance(value, str) and value.strip().endswith("%"):
-        try:
-            value = float(value.strip()[:-1]) / 100.0
-        except ValueError:
-            pass
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < 1:
-        raise err(f"expected a fraction between 0 and 1 (e.g. 0.01 or '1 %'), got {value!r}", key)
-    return float(value)
+def _fraction(table: dict[str, Any], key: str, default: float, err: TableError) -> float:
+    return fraction(table.get(key, default), key, err, "0.01 or '1 %'")
 
 
 def split_tables(tables: Any) -> tuple[list[Any], list[tuple[int, dict[str, Any]]]]:

@@ -8,9 +8,7 @@ names every flagged run with the spans where its filter is off (docs/consistency
 
 from __future__ import annotations
 
-import base64
 import html
-import io
 from typing import Any
 
 import matplotlib
@@ -24,23 +22,11 @@ from cosim.verify.consistency import (  # noqa: E402
     DEFAULT_FALSE_ALARM,
     ConsistencyRequirement,
 )
+from cosim.verify.figure_parts import campaign_histories, png_base64, verdict_title  # noqa: E402
 from cosim.verify.requirements import Requirement, Verdict  # noqa: E402
 
 _MAX_LINES = 40
 _MAX_LISTED = 20
-
-
-def _histories(campaign: Any, k: int) -> tuple[np.ndarray | None, np.ndarray]:
-    t, rows = None, []
-    for rec in campaign.records:
-        if rec.failed or f"e_{k}" not in rec.history:
-            continue
-        if t is None:
-            t = rec.history["time"]
-        if rec.history["time"].shape == t.shape:
-            rows.append(rec.history[f"e_{k}"])
-    m = 0 if t is None else t.size
-    return t, (np.array(rows) if rows else np.zeros((0, m)))
 
 
 def build_consistency_figure(campaign: Any, req: Requirement, verdict: Verdict) -> plt.Figure:
@@ -62,15 +48,12 @@ def build_consistency_figure(campaign: Any, req: Requirement, verdict: Verdict) 
     """
     assert isinstance(req, ConsistencyRequirement)
     k = campaign.requirements.index(req)
-    t, e = _histories(campaign, k)
+    t, e, _ = campaign_histories(campaign, k)
     fig = plt.figure(figsize=(10.5, 6.5))
     grid = fig.add_gridspec(2, 2, height_ratios=[1.2, 1.0])
     ax1 = fig.add_subplot(grid[0, :], label="statistic")
     ax2 = fig.add_subplot(grid[1, 0], label="flags")
-    colour = {"satisfied": "#1a7f37", "violated": "#cf222e", "undecided": "#9a6700"}
-    fig.suptitle(
-        f"{req.id} — {verdict.verdict.upper()}", color=colour[verdict.verdict], weight="bold"
-    )
+    verdict_title(fig, req, verdict)
     dof = req.dof or 1.0
     what = f"{req.kind.upper()} / dof" if req.dof else f"{req.kind.upper()}"
     if t is not None and e.shape[0]:
@@ -126,11 +109,7 @@ def consistency_figure(campaign: Any, req: Requirement, verdict: Verdict) -> str
     -------
     str
     """
-    fig = build_consistency_figure(campaign, req, verdict)
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=90)
-    plt.close(fig)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
+    return png_base64(build_consistency_figure(campaign, req, verdict))
 
 
 def consistency_html(campaign: Any, req: Requirement) -> str:

@@ -27,12 +27,16 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from cosim.verify.figure_parts import (  # noqa: E402
+    campaign_histories,
+    judged_window,
+    verdict_title,
+)
 from cosim.verify.requirements import Requirement, Verdict  # noqa: E402
 
 #: Runs drawn as lines, and runs whose +/-3 sigma band is filled.
 MAX_LINES = 40
 MAX_BANDS = 5
-COLOURS = {"satisfied": "#1a7f37", "violated": "#cf222e", "undecided": "#9a6700"}
 
 
 def estimate_histories(
@@ -59,30 +63,8 @@ def estimate_histories(
     assert req.reference is not None
     k = campaign.requirements.index(req)
     ref, f = req.reference.value, req.reference.to_unit
-    t, est, sig = None, [], []
-    for rec in campaign.records:
-        h = rec.history
-        if rec.failed or f"e_{k}" not in h:
-            continue
-        if t is None:
-            t = h["time"]
-        if h["time"].shape != t.shape:
-            continue
-        est.append((h[f"e_{k}"] + ref) * f)
-        if f"s_{k}" in h:
-            sig.append(3.0 * h[f"s_{k}"] * f)
-    m = 0 if t is None else t.size
-    return t, np.array(est).reshape(-1, m), np.array(sig).reshape(-1, m)
-
-
-def _window(req: Requirement, t0: float, t1: float) -> tuple[float, float]:
-    if req.criterion == "bound":
-        return (t0 if req.start is None else req.start), (t1 if req.until is None else req.until)
-    if req.criterion == "value":
-        at = t1 if req.at is None else req.at
-        half = 0.05 * (t1 - t0)
-        return max(t0, at - half), min(t1, at + half)
-    return min(t1, t0 + req.limit), t1
+    t, e, s = campaign_histories(campaign, k)
+    return t, (e + ref) * f, 3.0 * s * f
 
 
 def _allowed(ax: plt.Axes, req: Requirement, t0: float, t1: float) -> None:
@@ -98,7 +80,7 @@ def _allowed(ax: plt.Axes, req: Requirement, t0: float, t1: float) -> None:
         ax.vlines(at, ref - half, ref + half, label=f"allowed ±{req.limit:g} {req.unit}", **style)
         ax.plot([at, at], [ref - half, ref + half], "_", ms=14, color=style["color"])
         return
-    a, b = _window(req, t0, t1)
+    a, b = judged_window(req, t0, t1)
     ax.hlines([ref - half, ref + half], a, b, label=f"allowed ±{half:.4g} {r.unit}", **style)
 
 
@@ -153,10 +135,8 @@ def estimate_figure(
     axw = fig.add_subplot(grid[1, :], label="window")
     ax2 = fig.add_subplot(grid[2, 0], sharex=ax1, label="sigma")
     ax3 = fig.add_subplot(grid[2, 1], label="histogram")
-    fig.suptitle(
-        f"{req.id} — {verdict.verdict.upper()}", color=COLOURS[verdict.verdict], weight="bold"
-    )
-    a, b = _window(req, t0, t1)
+    verdict_title(fig, req, verdict)
+    a, b = judged_window(req, t0, t1)
     if t is not None and est.shape[0]:
         _estimates(ax1, t, est, s3)
         inside = (t >= a) & (t <= b)

@@ -16,7 +16,6 @@ and the software versions.
 
 from __future__ import annotations
 
-import base64
 import html
 import io
 import json
@@ -41,6 +40,13 @@ from cosim.verify.consistency_report import (  # noqa: E402
     consistency_section,
 )
 from cosim.verify.estimate_plots import estimate_figure  # noqa: E402
+from cosim.verify.figure_parts import (  # noqa: E402  (judged_window: report API)
+    VERDICT_COLOURS,
+    campaign_histories,
+    judged_window,
+    png_base64,
+    verdict_title,
+)
 from cosim.verify.records import write_atomic  # noqa: E402
 from cosim.verify.requirements import (  # noqa: E402
     SATISFIED,
@@ -51,7 +57,7 @@ from cosim.verify.requirements import (  # noqa: E402
 )
 
 REPORT_SCHEMA = "ins-cosim-verification-report/1"
-_COLOURS = {SATISFIED: "#1a7f37", VIOLATED: "#cf222e", UNDECIDED: "#9a6700"}
+_COLOURS = VERDICT_COLOURS
 _MAX_LINES = 40  # individual runs drawn in the error-vs-time panel
 
 
@@ -244,60 +250,6 @@ def _trace_items(campaign: Campaign) -> list[tuple[str, Any]]:
 
 
 # ----------------------------------------------------------------------------- plots
-def _png(fig: plt.Figure) -> str:
-    buf = io.BytesIO()
-    # No "Software" text chunk: the file then holds no URL, not even inside the PNG.
-    fig.savefig(buf, format="png", dpi=90, metadata={"Software": None})
-    plt.close(fig)
-    return base64.b64encode(buf.getvalue()).decode("ascii")
-
-
-def _histories(campaign: Campaign, k: int) -> tuple[np.ndarray | None, np.ndarray, np.ndarray]:
-    """Time, errors (completed runs, shape (n, m)) and sigmas (shape (n, m) or (0, m))."""
-    t = None
-    errors, sigmas = [], []
-    for rec in campaign.records:
-        if rec.failed or f"e_{k}" not in rec.history:
-            continue
-        if t is None:
-            t = rec.history["time"]
-        if rec.history["time"].shape != t.shape:
-            continue
-        errors.append(rec.history[f"e_{k}"])
-        if f"s_{k}" in rec.history:
-            sigmas.append(rec.history[f"s_{k}"])
-    m = 0 if t is None else t.size
-    e = np.array(errors) if errors else np.zeros((0, m))
-    s = np.array(sigmas) if sigmas else np.zeros((0, m))
-    return t, e, s
-
-
-def judged_window(req: Requirement, t0: float, t1: float) -> tuple[float, float]:
-    """The time span a requirement judges, for its window panel.
-
-    Parameters
-    ----------
-    req : Requirement
-        The requirement.
-    t0, t1 : float
-        The run's start and stop times [s].
-
-    Returns
-    -------
-    (float, float)
-        [s]: ``from``..``until`` of a bound; ``at`` +/- 5 % of the run (at least the
-        span shown, clipped to the run) for a value; the settling deadline to the end for
-        a settling criterion.
-    """
-    if req.criterion == "bound":
-        return (t0 if req.start is None else req.start), (t1 if req.until is None else req.until)
-    if req.criterion == "value":
-        at = t1 if req.at is None else req.at
-        half = 0.05 * (t1 - t0)
-        return max(t0, at - half), min(t1, at + half)
-    return min(t1, t0 + req.limit), t1
-
-
 def window_curves(
     t: np.ndarray, e: np.ndarray, s: np.ndarray, window: tuple[float, float]
 ) -> dict[str, np.ndarray]:
@@ -419,7 +371,7 @@ def build_requirement_figure(campaign: Campaign, req: Requirement, verdict: Verd
     if req.reference is not None:  # an estimate, drawn with its +/-3 sigma band
         return estimate_figure(campaign, req, verdict, _histogram)
     k = campaign.requirements.index(req)
-    t, e, s = _histories(campaign, k)
+    t, e, s = campaign_histories(campaign, k)
     master = campaign.provenance["master"]
     t0, t1 = master["start"], master["stop"]
     fig = plt.figure(figsize=(10.5, 10.0))
@@ -428,9 +380,7 @@ def build_requirement_figure(campaign: Campaign, req: Requirement, verdict: Verd
     axw = fig.add_subplot(grid[1, :], label="window")
     ax2 = fig.add_subplot(grid[2, 0], sharex=ax1, label="envelope")
     ax3 = fig.add_subplot(grid[2, 1], label="histogram")
-    fig.suptitle(
-        f"{req.id} — {verdict.verdict.upper()}", color=_COLOURS[verdict.verdict], weight="bold"
-    )
+    verdict_title(fig, req, verdict)
     label = f"error [{req.unit}]"
     window = judged_window(req, t0, t1)
     if t is not None and e.shape[0]:
@@ -542,7 +492,7 @@ def requirement_figure(campaign: Campaign, req: Requirement, verdict: Verdict) -
     """
     if req.criterion == "consistent":
         return consistency_figure(campaign, req, verdict)
-    return _png(build_requirement_figure(campaign, req, verdict))
+    return png_base64(build_requirement_figure(campaign, req, verdict))
 
 
 # ------------------------------------------------------------------------------ HTML

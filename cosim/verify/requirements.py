@@ -38,6 +38,7 @@ from cosim.errors import ScenarioError, UnitError
 from cosim.results import RunResult
 from cosim.units import conversion_factor, parse_unit, to_unit
 from cosim.verify.estimates import Reference, parse_reference
+from cosim.verify.table_keys import TableError, check_keys, fraction, table_error
 
 SATISFIED = "satisfied"
 VIOLATED = "violated"
@@ -395,27 +396,8 @@ def _parse_one(
     outputs: Sequence[str],
     default_on_failure: str,
 ) -> Requirement:
-    where = f"requirements[{i}]"
-
-    def err(message: str, key: str | None = None) -> ScenarioError:
-        rid = table.get("id")
-        label = f"requirement '{rid}': " if isinstance(rid, str) else ""
-        return ScenarioError(label + message, file=file, key=f"{where}.{key}" if key else where)
-
-    for k in table:
-        if k not in REQUIREMENT_KEYS:
-            hint = difflib.get_close_matches(k, REQUIREMENT_KEYS, n=1)
-            tip = f" Did you mean '{hint[0]}'?" if hint else ""
-            raise err(f"unknown key '{k}'.{tip} Allowed: {', '.join(sorted(REQUIREMENT_KEYS))}", k)
-    for k in ("id", "signal", "criterion"):
-        if k not in table:
-            raise err(f"missing '{k}'", k)
-    rid = table["id"]
-    if not isinstance(rid, str) or not rid.strip():
-        raise err(f"expected a non-empty string, got {rid!r}", "id")
-    text = table.get("text", "")
-    if not isinstance(text, str):
-        raise err(f"expected a string, got {text!r}", "text")
+    err = table_error(table, i, file)
+    rid, text = check_keys(table, REQUIREMENT_KEYS, ("id", "signal", "criterion"), err)
 
     criterion = table["criterion"]
     if criterion not in CRITERIA:
@@ -552,7 +534,7 @@ def _parse_one(
             "on_failure",
         )
     return Requirement(
-        id=rid.strip(),
+        id=rid,
         text=text,
         signal=signal,
         minus=minus,
@@ -643,16 +625,8 @@ def _bool(table: dict[str, Any], key: str, default: bool, err) -> bool:  # noqa:
     return value
 
 
-def _fraction(table: dict[str, Any], key: str, err) -> float:  # noqa: ANN001
-    value = table[key]
-    if isinstance(value, str) and value.strip().endswith("%"):
-        try:
-            value = float(value.strip()[:-1]) / 100.0
-        except ValueError:
-            pass
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < 1:
-        raise err(f"expected a fraction between 0 and 1 (e.g. 0.95 or '95 %'), got {value!r}", key)
-    return float(value)
+def _fraction(table: dict[str, Any], key: str, err: TableError) -> float:
+    return fraction(table[key], key, err, "0.95 or '95 %'")
 
 
 # --------------------------------------------------------------------------- one run
