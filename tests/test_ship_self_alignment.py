@@ -47,11 +47,13 @@ def test_the_lever_arm_takes_the_imu_velocity_out_of_the_coarse_stage() -> None:
 def test_acceptance_4_ship_heading_against_the_covariance_bound() -> None:
     """Acceptance 4: 50 runs, heading error RMS against the filter's sigma at 300 and 600 s.
 
-    Passes when RMS / sigma lies in the 99 % chi-square band of 50 runs ([0.76, 1.26]).
+    For a consistent filter ``50 RMS^2 / sigma^2 ~ chi-square(50)``: passes when RMS / sigma
+    lies in its 95 % band ([0.80, 1.20]). Measured (seed 2011): 0.85 at 300 s, 0.88 at
+    600 s (docs/self_alignment.md).
     """
     camp = seed003.campaign(SHIP, 50, 2011, columns=["align.rpy_err", "align.rpy_sigma"],
                             record_every=20, workers=2)  # fmt: skip
-    lo, hi = seed003.rms_band(50, 0.99)
+    lo, hi = seed003.rms_band(50, 0.95)
     for t in (300.0, 600.0):
         k = int(round(t))
         r = float(seed003.rms(camp["align.rpy_err"][:, k, 2]))
