@@ -201,8 +201,11 @@ class InertialCoarse:
         dt : float
             Step [s].
         """
-        dth = np.asarray(dtheta_b, dtype=float)
-        dv = np.asarray(dv_b, dtype=float)
+        # copies: the previous step's increments are kept, and a caller may pass views of
+        # input buffers that the next step overwrites in place (that would zero the coning
+        # and sculling terms)
+        dth = np.array(dtheta_b, dtype=float)
+        dv = np.array(dv_b, dtype=float)
         # rotation compensation and two-sample sculling / coning (previous step's increments)
         scul = (np.cross(self._prev_dth, dv) + np.cross(self._prev_dv, dth)) / 12.0
         self._b = self._b + self.C_b_b0 @ (dv + 0.5 * np.cross(dth, dv) + scul)
