@@ -279,42 +279,36 @@ def bad(text: str, old: str, new: str) -> str:
 
 CASES = [
     (
-        "nested",
-        bad(SSD, "<ssd:Elements>", '<ssd:Elements><ssd:System name="sub"/>'),
-        SSV,
-        "SystemStructure.ssd, key 'System 'Deck'/System 'sub'': a nested ssd:System is not "
-        "supported",
-    ),
-    (
-        "offset",
-        bad(SSD, 'factor="2.5"/>', 'factor="2.5" offset="1"/>'),
-        SSV,
-        "key 'Connection decay.x -> echo.u_real/LinearTransformation': offset 1",
-    ),
-    (
-        "mapping",
+        "mapping transformation on a connection",
         bad(
             SSD,
-            '<ssd:ParameterBinding source="resources/ship.ssv"/>',
-            '<ssd:ParameterBinding source="resources/ship.ssv">'
-            '<ssd:ParameterMapping source="resources/m.ssm"/></ssd:ParameterBinding>',
+            '<ssc:LinearTransformation factor="2.5"/>',
+            '<ssc:IntegerMappingTransformation><ssc:MapEntry source="1" target="2"/>'
+            "</ssc:IntegerMappingTransformation>",
         ),
         SSV,
-        "Component 'ship'/ParameterBinding[1]/ParameterMapping': parameter mappings (.ssm) are "
-        "not supported",
+        "key 'Connection decay.x -> echo.u_real/IntegerMappingTransformation': "
+        "IntegerMappingTransformation on a connection is not supported",
     ),
     (
         "unknown parameter",
         SSD,
         bad(SSV, 'name="lat0"', 'name="latitude"'),
         "!resources/ship.ssv, key 'Parameter 'latitude' (Component 'ship'/ParameterBinding[1])':"
-        " component 'ship' has no variable 'latitude'",
+        " Component 'ship' has no variable 'latitude'",
+    ),
+    (
+        "unknown unit",
+        SSD,
+        bad(SSV, 'unit="min"', 'unit="fortnightz"'),
+        "!resources/ship.ssv, key 'Parameter 'period[1]' (Component 'ship'/ParameterBinding[1])'"
+        ": unit 'fortnightz'",
     ),
     (
         "missing resource",
         bad(SSD, "resources/ship.ssv", "resources/nowhere.ssv"),
         SSV,
-        "'resources/nowhere.ssv' is not in the archive",
+        "'resources/nowhere.ssv' is not a file inside the archive",
     ),
     (
         "schema",
@@ -330,14 +324,30 @@ CASES = [
         "FMU's unit 'g'",
     ),
     (
-        "system connector",
-        bad(SSD, 'startElement="decay" startConnector="x"', 'startConnector="x"'),
+        "connector type",
+        bad(
+            SSD,
+            '<ssd:Connector name="x" kind="output"><ssc:Real/>',
+            '<ssd:Connector name="x" kind="output"><ssc:Integer/>',
+        ),
         SSV,
-        "key 'Connection (system).x -> echo.u_real': connections to the system's own "
-        "connectors are not supported",
+        "key 'Component 'decay'/Connector 'x'': the connector is declared ssc:Integer but the "
+        "FMU's variable is Real; declare the FMU's type",
     ),
     (
-        "integer link",
+        "type mismatch",
+        bad(
+            SSD,
+            'startElement="decay" startConnector="x"\n          endElement="echo" '
+            'endConnector="u_real"',
+            'startElement="decay" startConnector="x" endElement="echo" endConnector="u_int"',
+        ),
+        SSV,
+        "key 'Connection decay.x -> echo.u_int': a Real output (decay.x) to an Integer input "
+        "(echo.u_int): FMI connects variables of one type",
+    ),
+    (
+        "transformation on an integer link",
         bad(
             SSD,
             'startElement="decay" startConnector="x"\n          endElement="echo" '
@@ -345,14 +355,21 @@ CASES = [
             'startElement="decay" startConnector="n_int" endElement="echo" endConnector="u_int"',
         ),
         SSV,
-        "key 'Connection decay.n_int -> echo.u_int': 'decay.n_int' is Integer; ins-cosim "
-        "connects Real variables only",
+        "key 'Connection decay.n_int -> echo.u_int/LinearTransformation': a linear "
+        "transformation on an Integer link",
+    ),
+    (
+        "system connector",
+        bad(SSD, 'startElement="decay" startConnector="x"', 'startConnector="x"'),
+        SSV,
+        "key 'Connection (system).x -> echo.u_real': the top-level system's connector has no "
+        "source outside the archive",
     ),
     (
         "version",
-        bad(SSD, 'version="1.0" name="DeckSensors"', 'version="2.0" name="DeckSensors"'),
+        bad(SSD, 'version="1.0" name="DeckSensors"', 'version="3.0" name="DeckSensors"'),
         SSV,
-        "SSP version '2.0'; ins-cosim imports SSP 1.0",
+        "SSP version '3.0'; ins-cosim imports SSP 1.0 and 2.0",
     ),
 ]
 

@@ -1,26 +1,26 @@
-"""Import an SSP 1.0 archive (System Structure and Parameterization) as a scenario.
+"""Import an SSP archive (System Structure and Parameterization, 1.0 or 2.0) as a scenario.
 
 ``ins-cosim run system.ssp --out DIR`` (and ``check``) read the archive with
 :func:`load_ssp`, which returns a :class:`SspScenario`: a
 :class:`~cosim.scenario.Scenario` whose blocks are the archive's FMUs, so that it runs,
 records and is checked like a TOML scenario. What is read from ``SystemStructure.ssd``:
 
-- ``ssd:Component`` elements of the top-level ``ssd:System`` (``type`` absent or
-  ``application/x-fmu-sharedlibrary``, ``implementation`` absent, ``CoSimulation`` or
-  ``any``) whose ``source`` is an FMU inside the archive; an FMU variable whose name is
-  not ``name`` or ``name[i]`` (``body.mass``, ``der(x)``) is exposed under that name with
+- ``ssd:Component`` elements (``type`` absent or ``application/x-fmu-sharedlibrary``,
+  ``implementation`` absent, ``CoSimulation`` or ``any``) whose ``source`` is an FMU
+  inside the archive, in the top-level ``ssd:System`` and in its sub-systems, which
+  are flattened (:mod:`cosim.interop.ssp_structure`: a component ``imu`` of the
+  sub-system ``deck`` is the block ``deck_imu``); an FMU variable whose name is not
+  ``name`` or ``name[i]`` (``body.mass``, ``der(x)``) is exposed under that name with
   every other character replaced by ``_`` (``body_mass``);
-- ``ssd:Connection`` between two components; units are converted between the FMUs'
-  own units (a connector that states a unit must state the FMU's unit, or an equal one)
-  unless ``suppressUnitConversion="true"``; an ``ssc:LinearTransformation`` multiplies
-  the (converted) value by its ``factor`` (a non-zero ``offset`` is refused);
-- ``ssd:ParameterBinding`` of a component or of the system, with its parameter set
-  inline (``ssd:ParameterValues/ssv:ParameterSet``) or in an ``.ssv`` file of the archive
-  (``source=``), optionally with a ``prefix`` (prepended to the set's names, as SSP says:
-  at system level a parameter is named ``Component.variable``, so a component's own set
-  binds there with ``prefix="Component."``); ``ssv:Real`` values with a ``unit``
-  are converted to the FMU's unit (units from the set's ``ssv:Units``, the SSD's
-  ``ssd:Units``, or parsed from the name), ``ssv:Enumeration`` values are item names;
+- ``ssd:Connection`` elements, followed through sub-system connectors and signal
+  dictionaries (``ssd:SignalDictionaries``, ``ssd:SignalDictionaryReference``) to the
+  component at each end; connector types are checked (a mismatch is refused); units
+  are converted between the FMUs' own units (a connector that states a unit must
+  state the FMU's unit, or an equal one) unless ``suppressUnitConversion="true"``; an
+  ``ssc:LinearTransformation`` gives ``factor * value + offset`` (after the unit
+  conversion; the offset in the end connector's unit);
+- ``ssd:ParameterBinding`` elements with ``.ssv`` parameter sets (units converted) and
+  ``.ssm`` parameter mappings (:mod:`cosim.interop.ssp_params`);
 - ``ssd:Units`` (``ssc:Unit`` / ``ssc:BaseUnit``);
 - ``ssd:DefaultExperiment`` start and stop time; the macro step from the OSP annotation
   ``osp:FixedStepAlgorithm baseStepSize`` (SSP 1.0 has no element for it; this is what
@@ -30,12 +30,12 @@ records and is checked like a TOML scenario. What is read from ``SystemStructure
   ``coupling`` given to :func:`load_ssp` override them.
 
 Everything else that would change the result is refused, one line naming the archive,
-the file inside it and the element: nested systems, signal dictionaries, connections to
-the system's own connectors, connections of variables that are not Real, parameter
-mappings (``.ssm``), Boolean / Integer / Enumeration mapping transformations, offsets,
-Model Exchange components, references outside the archive, SSD versions other than 1.0,
-and whatever fails the SSP 1.0 schemas that fmpy ships (the ``.ssd`` and every ``.ssv``
-are validated).
+the file inside it and the element: connections from the top-level system's own
+connectors, Boolean / Integer / Enumeration mapping transformations on connections, a
+linear transformation on a link that is not Real, Model Exchange components,
+references outside the archive, SSD versions other than 1.x and 2.0, and whatever fails
+the SSP 1.0 schemas that fmpy ships (the ``.ssd`` and every ``.ssv``, ``.ssm`` and
+``.ssb`` are validated; an SSP 2.0 file as :mod:`cosim.interop.ssp_xml` says).
 
 The FMUs are unpacked into a temporary folder that lives as long as the process.
 """
@@ -48,43 +48,33 @@ import hashlib
 import re
 import shutil
 import tempfile
-import zipfile
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path, PurePosixPath
 from typing import Any
 from xml.etree import ElementTree as ET
 
+import numpy as np
+
 from cosim.archives import check_archive
 from cosim.errors import FmuError, ScenarioError, UnitError
+from cosim.interop.ssp_params import bind_binding_list
+from cosim.interop.ssp_structure import Flat, Link, flatten, resolve_links
+from cosim.interop.ssp_xml import (
+    NS,
+    SSD_FILE,
+    Archive,
+    SspImportError,
+    connector_type,
+    read_units,
+)
 from cosim.master import GAUSS_SEIDEL, JACOBI, MasterSettings, System
 from cosim.scenario import BlockSpec, Scenario
-from cosim.units import Unit, conversion_factor, parse_unit, unit_from_fmi
+from cosim.units import Unit, conversion_factor, parse_unit
 from cosim.variables import SCALAR_NAME, Variable, fmu_variables
 
-SSD = "http://ssp-standard.org/SSP1/SystemStructureDescription"
-SSC = "http://ssp-standard.org/SSP1/SystemStructureCommon"
-SSV = "http://ssp-standard.org/SSP1/SystemStructureParameterValues"
-OSP = "http://opensimulationplatform.com/SSP/OSPAnnotations"
-INS = "urn:ins-cosim:ssp"
-NS = {"ssd": SSD, "ssc": SSC, "ssv": SSV, "osp": OSP, "ic": INS}
+__all__ = ["SspImportError", "SspScenario", "load_ssp"]
 _FMU_TYPES = ("", "application/x-fmu-sharedlibrary")
-_BASE_ATTRS = ("kg", "m", "s", "A", "K", "mol", "cd", "rad")
-_VALUE_TYPES = ("Real", "Integer", "Boolean", "String", "Enumeration", "Binary")
-
-
-class SspImportError(ScenarioError):
-    """An SSP archive cannot be imported; the message names the archive, file and element."""
-
-
-@dataclass
-class _Link:
-    """One SSP connection as the master will run it."""
-
-    start: tuple[str, str]  # (component, FMU variable name)
-    end: tuple[str, str]
-    factor: float
-    suppress: bool
-    where: str
 
 
 @dataclass
@@ -111,26 +101,41 @@ class SspScenario(Scenario):
     raw : dict
         ``scenario.name`` and the archive path (no requirements or campaign).
     links : list
-        The archive's connections with their linear-transformation factors and whether
-        unit conversion is suppressed (applied by :meth:`build`).
+        The archive's connections resolved to component ends, with their linear
+        transformations and whether unit conversion is suppressed (applied by
+        :meth:`build`).
     notes : list of str
         What the import did that a reader should know (renamed variables, defaults).
     resources : dict
         Component name -> its FMU inside the archive (``resources/X.fmu``); the blocks run
         from copies unpacked into a temporary folder.
+    version : str
+        The SSD's SSP version (``"1.0"``, ``"2.0"``).
     """
 
-    links: list[_Link] = field(default_factory=list)
+    links: list[Link] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     resources: dict[str, str] = field(default_factory=dict)
+    version: str = "1.0"
+
+    @property
+    def offsets(self) -> dict[str, float]:
+        """Connection text (``"a.x -> b.u"``) -> its offset, for the links that have one."""
+        return {self._text(link): link.offset for link in self.links if link.offset != 0.0}
+
+    def _text(self, link: Link) -> str:
+        src = _scenario_name(self.blocks[link.start[0]], link.start[1])
+        dst = _scenario_name(self.blocks[link.end[0]], link.end[1])
+        return f"{link.start[0]}.{src} -> {link.end[0]}.{dst}"
 
     def build(self) -> tuple[System, dict[str, Any]]:
-        """Build as a scenario, then give each connection the factor SSP defines.
+        """Build as a scenario, then give each connection the transformation SSP defines.
 
         Returns
         -------
         system : System
-            Ready for :class:`cosim.master.Master`.
+            Ready for :class:`cosim.master.Master`; a block with an input whose link has
+            an offset is wrapped so that the offset is added where the master writes it.
         metadata : dict
             As :meth:`cosim.scenario.Scenario.build`, with ``ssp`` (the archive).
 
@@ -140,125 +145,75 @@ class SspScenario(Scenario):
             With the archive and element of the problem.
         """
         system, metadata = super().build()
-        by_pair = {}
-        for link in self.links:
-            src = _scenario_name(self.blocks[link.start[0]], link.start[1])
-            dst = _scenario_name(self.blocks[link.end[0]], link.end[1])
-            by_pair[(link.start[0], src, link.end[0], dst)] = link
+        by_text = {self._text(link): link for link in self.links}
         connections = []
+        offsets: dict[str, dict[int, float]] = {}
         for c in system.connections:
-            link = by_pair[(c.src_block, c.src_var, c.dst_block, c.dst_var)]
+            link = by_text[str(c)]
             unit_factor = 1.0 if link.suppress else c.factor
             connections.append(dataclasses.replace(c, factor=unit_factor * link.factor))
+            if link.offset != 0.0:
+                vr = system.blocks[c.dst_block].variables[c.dst_var].vr
+                offsets.setdefault(c.dst_block, {})[vr] = link.offset
         system.connections = connections
+        for name, by_vr in offsets.items():
+            system.blocks[name] = OffsetInputs(system.blocks[name], by_vr)
         metadata["ssp"] = {
             "file": str(self.path),
             "sha256": self.sha256,
+            "version": self.version,
             "components": self.resources,
             "notes": self.notes,
         }
         return system, metadata
 
 
+class OffsetInputs:
+    """A block host whose Real inputs get an SSP connection's offset added when written.
+
+    Everything but :meth:`real_writer` is the wrapped host's: the master writes the
+    connected inputs through ``real_writer`` (at initialisation and every step), so
+    ``input = factor * output + offset`` with the factor applied by the master.
+
+    Parameters
+    ----------
+    host : BlockHost
+        The block.
+    offsets : dict
+        Input value reference -> offset [the input's unit].
+    """
+
+    def __init__(self, host: Any, offsets: dict[int, float]) -> None:
+        self._host = host
+        self._offsets = offsets
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._host, name)
+
+    def real_writer(self, vrs: list[int]) -> Callable[[np.ndarray], None]:
+        """The host's writer for ``vrs``, adding each input's offset.
+
+        Parameters
+        ----------
+        vrs : list of int
+            Value references of Real inputs.
+
+        Returns
+        -------
+        callable
+            ``write(x)``, ``x`` float64 of shape (len(vrs),).
+        """
+        write = self._host.real_writer(vrs)
+        add = np.array([self._offsets.get(vr, 0.0) for vr in vrs])
+
+        def put(x: np.ndarray) -> None:
+            write(x + add)
+
+        return put
+
+
 def _scenario_name(spec: BlockSpec, fmu_name: str) -> str:
     return spec.rename.get(fmu_name, fmu_name)
-
-
-# --------------------------------------------------------------------------- reading
-class _Archive:
-    """The zip file, its parsed XML files and the place errors point to."""
-
-    def __init__(self, path: Path) -> None:
-        self.path = path
-        if path.is_file() and zipfile.is_zipfile(path):
-            check_archive(path, "SSP archive")  # the unpack limits, before any member is read
-        try:
-            self.zip = zipfile.ZipFile(path)
-        except (OSError, zipfile.BadZipFile) as exc:
-            raise SspImportError(
-                f"not an SSP archive ({exc}); expected a zip file with SystemStructure.ssd",
-                file=str(path),
-            ) from None
-        self.names = set(self.zip.namelist())
-
-    def error(self, inner: str, element: str, message: str) -> SspImportError:
-        return SspImportError(message, file=f"{self.path}!{inner}", key=element)
-
-    def xml(self, inner: str, schema: str, referrer: tuple[str, str]) -> ET.Element:
-        """Parse and validate one XML file of the archive."""
-        if inner not in self.names:
-            raise self.error(
-                referrer[0],
-                referrer[1],
-                f"'{inner}' is not in the archive (it holds: {', '.join(sorted(self.names))})",
-            )
-        data = self.zip.read(inner)
-        _validate(data, schema, self, inner)
-        try:
-            return ET.fromstring(data)
-        except ET.ParseError as exc:  # pragma: no cover - the schema check parses first
-            raise self.error(inner, "XML", f"not well-formed: {exc}") from None
-
-
-def _validate(data: bytes, schema: str, archive: _Archive, inner: str) -> None:
-    """Validate against the SSP 1.0 schema fmpy ships (lxml); first error in one line."""
-    from fmpy.ssp import ssd as fmpy_ssd
-    from lxml import etree
-
-    folder = Path(fmpy_ssd.__file__).parent / "schema"
-    try:
-        doc = etree.fromstring(data)
-    except etree.XMLSyntaxError as exc:
-        raise archive.error(inner, "XML", f"not well-formed XML: {exc}") from None
-    version = doc.get("version")
-    if version is not None and version != "1.0":
-        raise archive.error(
-            inner,
-            f"{etree.QName(doc).localname} version",
-            f'SSP version {version!r}; ins-cosim imports SSP 1.0 (version="1.0")',
-        )
-    validator = etree.XMLSchema(file=str(folder / schema))
-    if not validator.validate(doc):
-        first = validator.error_log[0]
-        raise archive.error(
-            inner,
-            f"line {first.line}",
-            f"does not validate against the SSP 1.0 schema {schema}: {first.message}",
-        )
-
-
-def _units(parent: ET.Element | None, path: str) -> dict[str, Unit]:
-    """``ssc:Unit`` definitions under ``parent`` (``ssd:Units`` or ``ssv:Units``)."""
-    out: dict[str, Unit] = {}
-    if parent is None:
-        return out
-    for u in parent.findall("ssc:Unit", NS):
-        base = u.find("ssc:BaseUnit", NS)
-        attrs = base.attrib if base is not None else {}
-        exponents = {k: float(attrs.get(k, 0)) for k in _BASE_ATTRS}
-        name = u.get("name", "")
-        try:
-            out[name] = unit_from_fmi(
-                name, exponents, float(attrs.get("factor", 1.0)), float(attrs.get("offset", 0.0))
-            )
-        except UnitError as exc:
-            raise SspImportError(exc.message, file=path, key=f"Unit '{name}'") from None
-    return out
-
-
-def _unit(name: str, *tables: dict[str, Unit]) -> Unit | str:
-    for table in tables:
-        if name in table:
-            return table[name]
-    return name
-
-
-def _number(text: str | None, default: float | None, archive: _Archive, where: str) -> float:
-    if text is None:
-        if default is None:
-            raise archive.error("SystemStructure.ssd", where, "missing")
-        return default
-    return float(text)
 
 
 def _safe_name(name: str, taken: set[str]) -> str:
@@ -282,7 +237,7 @@ def load_ssp(
     start: float | None = None,
     coupling: str | None = None,
 ) -> SspScenario:
-    """Read an SSP 1.0 archive as a scenario of FMU blocks.
+    """Read an SSP 1.0 or 2.0 archive as a scenario of FMU blocks.
 
     Parameters
     ----------
@@ -307,90 +262,38 @@ def load_ssp(
     path = Path(path)
     if not path.is_file():
         raise SspImportError("file not found; give the path of an .ssp archive", file=str(path))
-    archive = _Archive(path)
-    ssd_name = "SystemStructure.ssd"
-    root = archive.xml(ssd_name, "SystemStructureDescription.xsd", (ssd_name, "archive"))
-    ssd_path = f"{path}!{ssd_name}"
-    ssd_units = _units(root.find("ssd:Units", NS), ssd_path)
+    archive = Archive(path)
+    root = archive.xml(SSD_FILE, "SystemStructureDescription.xsd", (SSD_FILE, "archive"))
+    ssd_units = read_units(root.find("ssd:Units", NS), f"{path}!{SSD_FILE}")
     system = root.find("ssd:System", NS)
     assert system is not None  # the schema requires one
     sys_name = system.get("name", "")
-    where = f"System '{sys_name}'"
-    for tag, what in (
-        ("ssd:Elements/ssd:System", "a nested ssd:System"),
-        ("ssd:Elements/ssd:SignalDictionaryReference", "an ssd:SignalDictionaryReference"),
-        ("ssd:SignalDictionaries", "ssd:SignalDictionaries"),
-    ):
-        found = system.find(tag, NS)
-        if found is not None:
-            raise archive.error(
-                ssd_name,
-                f"{where}/{tag.split(':')[-1]} '{found.get('name', '')}'",
-                f"{what} is not supported; ins-cosim imports one flat system of FMU components",
-            )
+    flat = flatten(archive, system)
     workdir = Path(tempfile.mkdtemp(prefix="ins_cosim_ssp_"))
     atexit.register(shutil.rmtree, workdir, True)
     blocks: dict[str, BlockSpec] = {}
     variables: dict[str, dict[str, Variable]] = {}
-    connector_units: dict[tuple[str, str], str] = {}
+    declared: dict[tuple[str, str], tuple[str, ET.Element]] = {}
     notes: list[str] = []
     resources: dict[str, str] = {}
-    for comp in system.findall("ssd:Elements/ssd:Component", NS):
-        name = comp.get("name", "")
-        cwhere = f"Component '{name}'"
-        if not re.match(r"^[A-Za-z_]\w*$", name):
-            raise archive.error(
-                ssd_name, cwhere, "component names must be Python-style identifiers here"
-            )
-        ctype = comp.get("type", "")
-        if ctype not in _FMU_TYPES:
-            raise archive.error(
-                ssd_name, cwhere, f"type {ctype!r} is not supported; expected an FMU component"
-            )
-        impl = comp.get("implementation", "any")
-        if impl not in ("any", "CoSimulation"):
-            raise archive.error(
-                ssd_name, cwhere, f"implementation {impl!r}; ins-cosim runs CoSimulation FMUs"
-            )
-        source = comp.get("source", "")
-        inner = str(PurePosixPath(source.removeprefix("./")))
-        if ":" in source or inner.startswith("..") or inner not in archive.names:
-            raise archive.error(
-                ssd_name,
-                f"{cwhere} source",
-                f"{source!r} is not a file inside the archive; expected e.g. resources/X.fmu",
-            )
-        fmu = workdir / name / PurePosixPath(inner).name
-        fmu.parent.mkdir(parents=True, exist_ok=True)
-        fmu.write_bytes(archive.zip.read(inner))
-        check_archive(fmu)
-        variables[name] = _fmu_vars(fmu, archive, cwhere)
-        taken = {v for v in variables[name] if SCALAR_NAME.match(v)}
-        rename = {}
-        for own in variables[name]:
-            if not SCALAR_NAME.match(own):
-                rename[own] = _safe_name(own, taken)
-                taken.add(rename[own])
-        if rename:
+    for name, (comp, cwhere) in flat.components.items():
+        blocks[name], variables[name], inner = _component(archive, comp, name, cwhere, workdir)
+        resources[name] = inner
+        for conn in comp.findall("ssd:Connectors/ssd:Connector", NS):
+            kind = connector_type(conn)
+            if kind is not None:
+                declared[(name, conn.get("name", ""))] = kind
+        if blocks[name].rename:
             notes.append(
                 f"{name}: FMU variables renamed to scenario names: "
-                f"{', '.join(f'{a} -> {b}' for a, b in rename.items())}"
+                f"{', '.join(f'{a} -> {b}' for a, b in blocks[name].rename.items())}"
             )
-        for conn in comp.findall("ssd:Connectors/ssd:Connector", NS):
-            real = conn.find("ssc:Real", NS)
-            if real is not None and real.get("unit"):
-                connector_units[(name, conn.get("name", ""))] = real.get("unit", "")
-        blocks[name] = BlockSpec(name, "fmu", str(fmu.resolve()), rename=rename)
-        resources[name] = inner
     if not blocks:
-        raise archive.error(ssd_name, where, "no ssd:Component; nothing to run")
-    # parameters: system level (names Component.variable), then each component's own
-    _bind(archive, system, None, blocks, variables, ssd_units)
-    for comp in system.findall("ssd:Elements/ssd:Component", NS):
-        _bind(archive, comp, comp.get("name", ""), blocks, variables, ssd_units)
-    links, connections = _connections(
-        archive, system, blocks, variables, connector_units, ssd_units
-    )
+        raise archive.error(SSD_FILE, f"System '{sys_name}'", "no ssd:Component; nothing to run")
+    _bind_all(archive, flat, (), blocks, variables, ssd_units)
+    links, dead = resolve_links(archive, flat)
+    notes.extend(f"not connected to a component (exposed by the system only): {d}" for d in dead)
+    _check_links(archive, flat, links, variables, declared, ssd_units)
     settings = _settings(archive, root, step, stop, start, coupling, notes)
     data = path.read_bytes()
     return SspScenario(
@@ -399,211 +302,163 @@ def load_ssp(
         name=root.get("name") or sys_name or path.stem,
         settings=settings,
         blocks=blocks,
-        connections=connections,
+        connections=[
+            f"{lk.start[0]}.{_scenario_name(blocks[lk.start[0]], lk.start[1])} -> "
+            f"{lk.end[0]}.{_scenario_name(blocks[lk.end[0]], lk.end[1])}"
+            for lk in links
+        ],
         outputs=None,
         raw={"scenario": {"name": root.get("name", path.stem)}, "ssp": str(path)},
         links=links,
         notes=notes,
         resources=resources,
+        version=archive.version,
     )
 
 
-def _fmu_vars(fmu: Path, archive: _Archive, where: str) -> dict[str, Variable]:
+def _component(
+    archive: Archive, comp: ET.Element, name: str, cwhere: str, workdir: Path
+) -> tuple[BlockSpec, dict[str, Variable], str]:
+    """The block spec of one component (its FMU unpacked), its variables, its resource."""
+    ctype = comp.get("type", "")
+    if ctype not in _FMU_TYPES:
+        raise archive.error(
+            SSD_FILE, cwhere, f"type {ctype!r} is not supported; expected an FMU component"
+        )
+    impl = comp.get("implementation", "any")
+    if impl not in ("any", "CoSimulation"):
+        raise archive.error(
+            SSD_FILE, cwhere, f"implementation {impl!r}; ins-cosim runs CoSimulation FMUs"
+        )
+    source = comp.get("source", "")
+    inner = archive.member(source, (SSD_FILE, f"{cwhere} source"), "e.g. resources/X.fmu")
+    fmu = workdir / name / PurePosixPath(inner).name
+    fmu.parent.mkdir(parents=True, exist_ok=True)
+    fmu.write_bytes(archive.zip.read(inner))
+    check_archive(fmu)
     from fmpy import read_model_description
 
     try:
-        md = read_model_description(str(fmu), validate=False)
-        return fmu_variables(md)
+        fmu_vars = fmu_variables(read_model_description(str(fmu), validate=False))
     except (FmuError, Exception) as exc:
-        raise archive.error(
-            "SystemStructure.ssd", f"{where} source", f"cannot read the FMU: {exc}"
-        ) from None
+        raise archive.error(SSD_FILE, f"{cwhere} source", f"cannot read the FMU: {exc}") from None
+    taken = {v for v in fmu_vars if SCALAR_NAME.match(v)}
+    rename = {}
+    for own in fmu_vars:
+        if not SCALAR_NAME.match(own):
+            rename[own] = _safe_name(own, taken)
+            taken.add(rename[own])
+    return BlockSpec(name, "fmu", str(fmu.resolve()), rename=rename), fmu_vars, inner
 
 
-def _bind(
-    archive: _Archive,
-    element: ET.Element,
-    component: str | None,
+def _bind_all(
+    archive: Archive,
+    flat: Flat,
+    path: tuple[str, ...],
     blocks: dict[str, BlockSpec],
     variables: dict[str, dict[str, Variable]],
     ssd_units: dict[str, Unit],
 ) -> None:
-    """Apply the parameter bindings of a component (or, ``component=None``, the system)."""
-    owner = f"Component '{component}'" if component else f"System '{element.get('name', '')}'"
-    for i, binding in enumerate(element.findall("ssd:ParameterBindings/ssd:ParameterBinding", NS)):
-        bwhere = f"{owner}/ParameterBinding[{i + 1}]"
-        if binding.find("ssd:ParameterMapping", NS) is not None:
-            raise archive.error(
-                "SystemStructure.ssd",
-                f"{bwhere}/ParameterMapping",
-                "parameter mappings (.ssm) are not supported; give the values under the "
-                "FMU's variable names",
-            )
-        btype = binding.get("type", "application/x-ssp-parameter-set")
-        if btype != "application/x-ssp-parameter-set":
-            raise archive.error(
-                "SystemStructure.ssd", bwhere, f"type {btype!r}; expected a parameter set"
-            )
-        source = binding.get("source")
-        if source is not None:
-            inner = str(PurePosixPath(source.removeprefix("./")))
-            if ":" in source or inner.startswith(".."):
-                raise archive.error(
-                    "SystemStructure.ssd",
-                    f"{bwhere} source",
-                    f"{source!r} is outside the archive; expected a .ssv file inside it",
-                )
-            pset = archive.xml(
-                inner,
-                "SystemStructureParameterValues.xsd",
-                ("SystemStructure.ssd", f"{bwhere} source"),
-            )
-            file = inner
-        else:
-            pset = binding.find("ssd:ParameterValues/ssv:ParameterSet", NS)
-            file = "SystemStructure.ssd"
-            if pset is None:
-                continue
-        prefix = binding.get("prefix", "")
-        set_units = _units(pset.find("ssv:Units", NS), f"{archive.path}!{file}")
-        for p in pset.findall("ssv:Parameters/ssv:Parameter", NS):
-            pname = p.get("name", "")
-            pwhere = f"Parameter '{pname}'" + (
-                f" ({bwhere})" if file != "SystemStructure.ssd" else f" of {bwhere}"
-            )
-            name = prefix + pname  # SSP: the prefix is prepended to the set's names
-            target = component
+    """Apply the parameter bindings of the system at ``path`` and below, lowest first
+    (SSP: a binding at a higher level takes precedence)."""
+    system = flat.systems[path]
+    for el in system.findall("ssd:Elements/*", NS):
+        sub = (*path, el.get("name", ""))
+        block = flat.paths.get(sub)
+        if block:  # a component: its own names
+
+            def own(name: str, block: str = block) -> tuple[str, str] | None:
+                return (block, name) if name in variables[block] else None
+
+            owner = f"Component '{'/'.join(sub)}'"
+            bind_binding_list(archive, el, owner, own, blocks, variables, ssd_units)
+        elif block == "":
+            _bind_all(archive, flat, sub, blocks, variables, ssd_units)
+
+    def hierarchical(name: str) -> tuple[str, str] | None:
+        scope = path
+        rest = name
+        while "." in rest:
+            head, rest = rest.split(".", 1)
+            scope = (*scope, head)
+            target = flat.paths.get(scope)
             if target is None:
-                target, dot, name = name.partition(".")
-                if not dot or target not in blocks:
-                    raise archive.error(
-                        file,
-                        pwhere,
-                        f"a system-level parameter must be named 'Component.variable' with a "
-                        f"component of the system ({', '.join(blocks)})",
-                    )
-            fmu_vars = variables[target]
-            if name not in fmu_vars:
-                import difflib
+                return None
+            if target:
+                return (target, rest) if rest in variables[target] else None
+        return None
 
-                close = difflib.get_close_matches(name, list(fmu_vars), n=3)
-                tip = f" Closest names: {', '.join(close)}." if close else ""
-                raise archive.error(
-                    file, pwhere, f"component '{target}' has no variable '{name}'.{tip}"
-                )
-            var = fmu_vars[name]
-            if var.causality not in ("parameter", "input"):
-                raise archive.error(
-                    file,
-                    pwhere,
-                    f"'{target}.{name}' is an {var.causality}; only parameters and inputs "
-                    f"can be set",
-                )
-            value = _value(p, var, archive, file, pwhere, set_units, ssd_units)
-            spec = blocks[target]
-            spec.parameters[_scenario_name(spec, name)] = value
+    owner = f"System '{'/'.join(path) if path else system.get('name', '')}'"
+    bind_binding_list(archive, system, owner, hierarchical, blocks, variables, ssd_units)
 
 
-def _value(
-    p: ET.Element,
-    var: Variable,
-    archive: _Archive,
-    file: str,
-    where: str,
-    set_units: dict[str, Unit],
-    ssd_units: dict[str, Unit],
-) -> Any:
-    """The value of one ``ssv:Parameter``, in the FMU variable's unit and type."""
-    kinds = [child for child in p if child.tag.split("}")[-1] in _VALUE_TYPES]
-    kind = kinds[0].tag.split("}")[-1]
-    text = kinds[0].get("value", "")
-    if kind == "Real":
-        value = float(text)
-        unit = kinds[0].get("unit")
-        if unit:
-            try:
-                value *= conversion_factor(_unit(unit, set_units, ssd_units), var.conversion_unit)
-            except UnitError as exc:
-                raise archive.error(file, where, exc.message) from None
-        return value
-    if kind == "Integer":
-        return int(text)
-    if kind == "Boolean":
-        return text in ("true", "1")
-    return text  # String, Enumeration (item name), Binary (hex digits)
-
-
-def _connections(
-    archive: _Archive,
-    system: ET.Element,
-    blocks: dict[str, BlockSpec],
+def _check_links(
+    archive: Archive,
+    flat: Flat,
+    links: list[Link],
     variables: dict[str, dict[str, Variable]],
-    connector_units: dict[tuple[str, str], str],
+    declared: dict[tuple[str, str], tuple[str, ET.Element]],
     ssd_units: dict[str, Unit],
-) -> tuple[list[_Link], list[str]]:
-    links: list[_Link] = []
-    texts: list[str] = []
-    for c in system.findall("ssd:Connections/ssd:Connection", NS):
-        se, sc = c.get("startElement"), c.get("startConnector", "")
-        ee, ec = c.get("endElement"), c.get("endConnector", "")
-        where = f"Connection {se or '(system)'}.{sc} -> {ee or '(system)'}.{ec}"
-        if not se or not ee:
-            raise archive.error(
-                "SystemStructure.ssd",
-                where,
-                "connections to the system's own connectors are not supported; connect "
-                "component to component",
-            )
-        for comp, conn in ((se, sc), (ee, ec)):
-            if comp not in blocks:
-                raise archive.error(
-                    "SystemStructure.ssd", where, f"no component '{comp}' in the system"
-                )
+) -> None:
+    """Connector types and units of every link, one line per problem."""
+    for link in links:
+        types = []
+        for comp, conn in (link.start, link.end):
             if conn not in variables[comp]:
                 raise archive.error(
-                    "SystemStructure.ssd",
-                    where,
-                    f"the FMU of '{comp}' has no variable '{conn}'",
+                    SSD_FILE, link.where, f"the FMU of '{comp}' has no variable '{conn}'"
                 )
-            declared = connector_units.get((comp, conn))
             var = variables[comp][conn]
-            if var.type != "Real":
+            types.append(var.type)
+            kind = declared.get((comp, conn))
+            if kind is not None and kind[0] != var.type:
                 raise archive.error(
-                    "SystemStructure.ssd",
-                    where,
-                    f"'{comp}.{conn}' is {var.type}; ins-cosim connects Real variables only",
-                )
-            if declared and not _same_unit(declared, var, ssd_units):
-                raise archive.error(
-                    "SystemStructure.ssd",
+                    SSD_FILE,
                     f"Component '{comp}'/Connector '{conn}'",
-                    f"the connector's unit '{declared}' is not the FMU's unit '{var.unit}'; "
+                    f"the connector is declared ssc:{_local(kind[1])} but the FMU's variable "
+                    f"is {var.type}; declare the FMU's type",
+                )
+            unit = kind[1].get("unit") if kind is not None else None
+            if unit and not _same_unit(unit, var, ssd_units):
+                raise archive.error(
+                    SSD_FILE,
+                    f"Component '{comp}'/Connector '{conn}'",
+                    f"the connector's unit '{unit}' is not the FMU's unit '{var.unit}'; "
                     f"ins-cosim converts between the FMUs' own units",
                 )
-        factor = 1.0
-        for t in c:
-            tag = t.tag.split("}")[-1]
-            if tag == "LinearTransformation":
-                factor = float(t.get("factor", 1.0))
-                if float(t.get("offset", 0.0)) != 0.0:
-                    raise archive.error(
-                        "SystemStructure.ssd",
-                        f"{where}/LinearTransformation",
-                        f"offset {t.get('offset')}: ins-cosim connections scale, they do "
-                        f"not shift; only factor is supported",
-                    )
-            elif tag.endswith("MappingTransformation"):
+        for node in link.via:
+            on_way = flat.types.get(node)
+            if on_way is not None and on_way != types[0]:
+                what = "signal dictionary entry" if node[0] == "dict" else "system connector"
                 raise archive.error(
-                    "SystemStructure.ssd",
-                    f"{where}/{tag}",
-                    f"{tag} is not supported; connections carry Real values",
+                    SSD_FILE,
+                    link.where,
+                    f"the {what} '{node[1]}.{node[2]}' is declared {on_way} but carries "
+                    f"{link.start[0]}.{link.start[1]}, a {types[0]}; declare {types[0]}",
                 )
-        suppress = c.get("suppressUnitConversion", "false") in ("true", "1")
-        links.append(_Link((se, sc), (ee, ec), factor, suppress, where))
-        texts.append(
-            f"{se}.{_scenario_name(blocks[se], sc)} -> {ee}.{_scenario_name(blocks[ee], ec)}"
-        )
-    return links, texts
+        if types[0] != types[1]:
+            raise archive.error(
+                SSD_FILE,
+                link.where,
+                f"{_an(types[0])} output ({link.start[0]}.{link.start[1]}) to {_an(types[1])} "
+                f"input ({link.end[0]}.{link.end[1]}): FMI connects variables of one type; "
+                f"connect {_an(types[1])} output or convert inside an FMU",
+            )
+        if types[0] != "Real" and (link.factor != 1.0 or link.offset != 0.0):
+            raise archive.error(
+                SSD_FILE,
+                f"{link.where}/LinearTransformation",
+                f"a linear transformation on {_an(types[0])} link; only Real links are "
+                f"transformed, remove it",
+            )
+
+
+def _an(word: str) -> str:
+    return f"an {word}" if word[0] in "AEIOU" else f"a {word}"
+
+
+def _local(element: ET.Element) -> str:
+    return element.tag.rsplit("}", 1)[-1]
 
 
 def _same_unit(declared: str, var: Variable, ssd_units: dict[str, Unit]) -> bool:
@@ -617,7 +472,7 @@ def _same_unit(declared: str, var: Variable, ssd_units: dict[str, Unit]) -> bool
 
 
 def _settings(
-    archive: _Archive,
+    archive: Archive,
     root: ET.Element,
     step: float | None,
     stop: float | None,
@@ -625,7 +480,7 @@ def _settings(
     coupling: str | None,
     notes: list[str],
 ) -> MasterSettings:
-    ssd = "SystemStructure.ssd"
+    ssd = SSD_FILE
     experiment = root.find("ssd:DefaultExperiment", NS)
     if start is None:
         start = float(experiment.get("startTime", 0.0)) if experiment is not None else 0.0
