@@ -8,7 +8,7 @@ coupling rule of ins-cosim and libcosim in four ways that change the numbers:
 1. it sets no parameter values of the archive itself (only a ``parameter_set`` passed by
    the caller, with names ``Component.variable``);
 2. it applies no ``ssc:LinearTransformation`` (it looks for the element in the ``ssd``
-   namespace and never uses what it finds);
+   namespace and never uses what it finds), neither factor nor offset;
 3. it initialises every FMU without setting its connected inputs, and feeds 0.0 (not the
    sources' values at t0) to every input in the first step;
 4. it advances time by adding the step (``time += step_size``), so ``t_n`` drifts from
@@ -21,7 +21,11 @@ and parameter sets, fmpy's ``FMU2Slave`` for each component, ``fmpy.ssp.simulati
 "Concepts": parameters and the sources' start values (0.0 for an output without one)
 set before initialisation, then in each macro step every component reads the outputs
 of the end of the previous step, steps from ``t_n = t0 + n h`` by ``t_{n+1} - t_n``,
-and the connections are copied (times the transformation's factor) after all stepped.
+and the connections are copied (``factor * value + offset`` of the transformation)
+after all stepped. It runs flat archives of components with their own parameter sets
+(what ``export-ssp`` writes, also from an imported archive with sub-systems, signal
+dictionaries or parameter mappings: those come back flattened and applied); fmpy's
+reader itself does not resolve them.
 It imports nothing of ins-cosim's master, so the comparison is between two independent
 implementations of the same rule.
 """
@@ -43,8 +47,8 @@ _SSD = "{http://ssp-standard.org/SSP1/SystemStructureDescription}"
 _SSC = "{http://ssp-standard.org/SSP1/SystemStructureCommon}"
 
 
-def _factors(ssp: Path) -> dict[tuple[str, str, str, str], float]:
-    """(start element, start connector, end element, end connector) -> factor."""
+def _factors(ssp: Path) -> dict[tuple[str, str, str, str], tuple[float, float]]:
+    """(start element, start connector, end element, end connector) -> (factor, offset)."""
     with zipfile.ZipFile(ssp) as zf:
         root = ET.fromstring(zf.read("SystemStructure.ssd"))
     out = {}
@@ -56,18 +60,20 @@ def _factors(ssp: Path) -> dict[tuple[str, str, str, str], float]:
             c.get("endConnector", ""),
         )
         t = c.find(f"{_SSC}LinearTransformation")
-        factor = 1.0
+        factor, offset = 1.0, 0.0
         if t is not None:
-            if float(t.get("offset", 0.0)) != 0.0:
-                raise ValueError(f"connection {key}: an offset is not supported")
-            factor = float(t.get("factor", 1.0))
-        out[key] = factor
+            factor, offset = float(t.get("factor", 1.0)), float(t.get("offset", 0.0))
+        out[key] = (factor, offset)
     return out
 
 
 def _typed(variable: Any, text: str) -> Any:
     if variable.type == "Real":
         return float(text)
+    if variable.type == "Enumeration" and variable.declaredType is not None:
+        items = {item.name: int(item.value) for item in variable.declaredType.items}
+        if text in items:
+            return items[text]
     if variable.type in ("Integer", "Enumeration"):
         return int(text)
     if variable.type == "Boolean":
@@ -107,7 +113,7 @@ def run_fmpy_ssp(
     ------
     ValueError
         A time grid that is not whole steps, a parameter with a unit (this driver applies
-        values as they stand), an offset in a transformation, or an unknown variable.
+        values as they stand), or an unknown variable.
     """
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
@@ -122,9 +128,9 @@ def run_fmpy_ssp(
     components = find_components(ssd.system)
     factors = _factors(ssp)
     unzipped = Path(extract(str(ssp)))
-    into: dict[str, list[tuple[str, str, str, float]]] = {c.name: [] for c in components}
-    for (se, sc, ee, ec), factor in factors.items():
-        into[ee].append((ec, se, sc, factor))
+    into: dict[str, list[tuple[str, str, str, float, float]]] = {c.name: [] for c in components}
+    for (se, sc, ee, ec), (factor, offset) in factors.items():
+        into[ee].append((ec, se, sc, factor, offset))
     started = []
     try:
         for comp in components:
@@ -150,10 +156,10 @@ def run_fmpy_ssp(
                         _set(comp, variable, _typed(variable, p.value))
         by_name = {c.name: c for c in components}
         for comp in components:  # inputs from the sources' start values (0.0 if none)
-            for ec, se, sc, factor in into[comp.name]:
+            for ec, se, sc, factor, offset in into[comp.name]:
                 src = by_name[se].variables[sc]
-                value = float(src.start) if src.start is not None else 0.0
-                set_value(comp, ec, factor * value)
+                value = _typed(src, src.start) if src.start is not None else 0.0
+                set_value(comp, ec, _transformed(value, factor, offset))
             comp.fmu.enterInitializationMode()
             comp.fmu.exitInitializationMode()
         outputs = {
@@ -175,8 +181,8 @@ def run_fmpy_ssp(
             t_n, t_next = start + n * step, start + (n + 1) * step
             snapshot = dict(outputs)
             for comp in components:
-                for ec, se, sc, factor in into[comp.name]:
-                    set_value(comp, ec, factor * snapshot[(se, sc)])
+                for ec, se, sc, factor, offset in into[comp.name]:
+                    set_value(comp, ec, _transformed(snapshot[(se, sc)], factor, offset))
                 comp.fmu.doStep(currentCommunicationPoint=t_n, communicationStepSize=t_next - t_n)
             for key in outputs:
                 outputs[key] = get_value(by_name[key[0]], key[1])
@@ -191,6 +197,16 @@ def run_fmpy_ssp(
                 pass
             shutil.rmtree(comp.unzipdir, ignore_errors=True)
         shutil.rmtree(unzipped, ignore_errors=True)
+
+
+def _transformed(value: Any, factor: float, offset: float) -> Any:
+    """``factor * value + offset``; a value without a transformation passes as it is
+    (an Integer or Boolean link keeps its type)."""
+    if factor == 1.0 and offset == 0.0:
+        return value
+    if offset == 0.0:
+        return factor * value
+    return factor * value + offset
 
 
 def _set(comp: Any, variable: Any, value: Any) -> None:

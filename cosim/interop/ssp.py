@@ -17,7 +17,13 @@ validated against the SSP 1.0 schemas in the tests):
   double), already converted to the FMU's units, so a tool applies them as they are;
 - one ``ssd:Connection`` per scalar connection; a connection that converts units
   carries an ``ssc:LinearTransformation`` with our factor and
-  ``suppressUnitConversion="true"`` (so a unit-aware tool does not convert twice);
+  ``suppressUnitConversion="true"`` (so a unit-aware tool does not convert twice); a
+  connection of an imported archive (:class:`~cosim.interop.ssp_import.SspScenario`)
+  carries its factor and offset the same way, so that import -> export -> import gives
+  the same scenario (sub-systems and signal dictionaries come back flattened, mappings
+  applied);
+- each connector declares the FMU variable's type (``ssc:Real``, ``ssc:Integer``,
+  ``ssc:Boolean``, ``ssc:String``, ``ssc:Enumeration``), which the import checks;
 - ``ssd:DefaultExperiment`` with start and stop time and, as an annotation of type
   ``com.opensimulationplatform``, ``osp:FixedStepAlgorithm baseStepSize`` (the macro
   step); a block of rate k gets ``osp:StepSizeHint value = k * step`` (libcosim's way to
@@ -139,13 +145,22 @@ def _number(value: float) -> str:
     return repr(float(value))
 
 
-def _parameter_value(parent: ET.Element, vtype: str, value: Any) -> None:
+def _parameter_value(
+    parent: ET.Element, vtype: str, value: Any, items: tuple[tuple[str, int], ...] = ()
+) -> None:
+    names = {int(v): n for n, v in items}
+    if vtype == "Enumeration" and not isinstance(value, str) and int(value) in names:
+        value = names[int(value)]  # an item by its name, as SSP and the FMU's type say
     if vtype == "Real":
         ET.SubElement(parent, _q(SSV, "Real"), value=_number(value))
     elif vtype == "Integer":
         ET.SubElement(parent, _q(SSV, "Integer"), value=str(int(value)))
     elif vtype == "Boolean":
         ET.SubElement(parent, _q(SSV, "Boolean"), value="true" if value else "false")
+    elif vtype == "Enumeration" and isinstance(value, str):
+        ET.SubElement(parent, _q(SSV, "Enumeration"), value=value)
+    elif vtype == "Enumeration":
+        ET.SubElement(parent, _q(SSV, "Integer"), value=str(int(value)))
     else:
         ET.SubElement(parent, _q(SSV, "String"), value=str(value))
 
@@ -223,7 +238,7 @@ def _component(
         for scalar, value in parameters.items():
             var = host.variables[scalar]
             parameter = ET.SubElement(plist, _q(SSV, "Parameter"), name=var.own_name)
-            _parameter_value(parameter, var.type, value)
+            _parameter_value(parameter, var.type, value, tuple(var.items))
     if step_hint is not None:
         _osp_annotation(comp, "StepSizeHint").set("value", _number(step_hint))
 
@@ -387,6 +402,8 @@ def _describe(sc: Scenario, system: Any) -> tuple[ET.Element, dict[str, Any]]:
         names = {v.name: v.fmu_name for v in host.variables.values() if v.fmu_name}
         if names:
             renamed[name] = names
+    offsets = getattr(sc, "offsets", {})  # an imported archive's (SspScenario)
+    suppressed = getattr(sc, "suppressed", set())
     if system.connections:
         connections = ET.SubElement(system_el, _q(SSD, "Connections"))
         for c in system.connections:
@@ -400,10 +417,16 @@ def _describe(sc: Scenario, system: Any) -> tuple[ET.Element, dict[str, Any]]:
                 endElement=c.dst_block,
                 endConnector=dst,
             )
-            if c.factor != 1.0:
+            offset = offsets.get(str(c), 0.0)
+            if str(c) in suppressed:
+                link.set("suppressUnitConversion", "true")
+            if c.factor != 1.0 or offset != 0.0:
                 link.set("suppressUnitConversion", "true")
                 ET.SubElement(
-                    link, _q(SSC, "LinearTransformation"), factor=_number(c.factor), offset="0"
+                    link,
+                    _q(SSC, "LinearTransformation"),
+                    factor=_number(c.factor),
+                    offset=_number(offset),
                 )
     if enums:
         enum_el = ET.SubElement(root, _q(SSD, "Enumerations"))

@@ -43,6 +43,7 @@ The FMUs are unpacked into a temporary folder that lives as long as the process.
 from __future__ import annotations
 
 import atexit
+import copy
 import dataclasses
 import hashlib
 import re
@@ -68,7 +69,7 @@ from cosim.interop.ssp_xml import (
     connector_type,
     read_units,
 )
-from cosim.master import GAUSS_SEIDEL, JACOBI, MasterSettings, System
+from cosim.master import GAUSS_SEIDEL, JACOBI, Connection, MasterSettings, System
 from cosim.scenario import BlockSpec, Scenario
 from cosim.units import Unit, conversion_factor, parse_unit
 from cosim.variables import SCALAR_NAME, Variable, fmu_variables
@@ -123,6 +124,11 @@ class SspScenario(Scenario):
         """Connection text (``"a.x -> b.u"``) -> its offset, for the links that have one."""
         return {self._text(link): link.offset for link in self.links if link.offset != 0.0}
 
+    @property
+    def suppressed(self) -> set[str]:
+        """Connection texts of the links that suppress unit conversion."""
+        return {self._text(link) for link in self.links if link.suppress}
+
     def _text(self, link: Link) -> str:
         src = _scenario_name(self.blocks[link.start[0]], link.start[1])
         dst = _scenario_name(self.blocks[link.end[0]], link.end[1])
@@ -144,8 +150,26 @@ class SspScenario(Scenario):
         ScenarioError, FmuError
             With the archive and element of the problem.
         """
-        system, metadata = super().build()
         by_text = {self._text(link): link for link in self.links}
+        # a link that suppresses unit conversion may join variables of different
+        # dimensions (a unitless output to an input in rad): it bypasses the scenario's
+        # unit check, and its sink is not "unconnected" while the scenario builds
+        raw = {text: link for text, link in by_text.items() if link.suppress}
+        saved = (self.connections, self.blocks)
+        self.connections = [text for text in self.connections if text not in raw]
+        self.blocks = {name: copy.copy(spec) for name, spec in self.blocks.items()}
+        for link in raw.values():
+            spec = self.blocks[link.end[0]]
+            spec.unconnected_ok = [*spec.unconnected_ok, _scenario_name(spec, link.end[1])]
+        try:
+            system, metadata = super().build()
+        finally:
+            self.connections, self.blocks = saved
+        for link in raw.values():
+            dst = _scenario_name(self.blocks[link.end[0]], link.end[1])
+            metadata.get("unconnected", {}).get(link.end[0], {}).pop(dst, None)
+            src = _scenario_name(self.blocks[link.start[0]], link.start[1])
+            system.connections.append(Connection(link.start[0], src, link.end[0], dst))
         connections = []
         offsets: dict[str, dict[int, float]] = {}
         for c in system.connections:
@@ -401,7 +425,16 @@ def _check_links(
     ssd_units: dict[str, Unit],
 ) -> None:
     """Connector types and units of every link, one line per problem."""
+    sinks: dict[tuple[str, str], str] = {}
     for link in links:
+        if link.end in sinks:
+            raise archive.error(
+                SSD_FILE,
+                link.where,
+                f"the input {link.end[0]}.{link.end[1]} is also fed by {sinks[link.end]}; "
+                f"an input takes one source",
+            )
+        sinks[link.end] = link.where
         types = []
         for comp, conn in (link.start, link.end):
             if conn not in variables[comp]:
