@@ -21,6 +21,8 @@ project's FMUs. For each:
 from __future__ import annotations
 
 import math
+import re
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -152,8 +154,6 @@ def test_typed_connectors_are_read_and_written_back(archives, tmp_path: Path) ->
     sc = load_ssp(archives["typed"])
     assert sc.blocks["echo"].parameters == {"p_int": 2, "u_enum": "mid"}
     export = export_ssp(sc, tmp_path / "typed.ssp")
-    import zipfile
-
     text = zipfile.ZipFile(export.path).read("SystemStructure.ssd").decode()
     for name, kind in [("n_int", "Integer"), ("u_bool", "Boolean"), ("y_str", "String")]:
         assert f'<ssd:Connector name="{name}"' in text
@@ -193,10 +193,10 @@ RUNS_AS_IS = {
     "libcosim": {
         "hierarchy": (False, "its loader reads the top-level system's components only"),
         "mapping": (False, "its loader ignores parameter mappings (.ssm)"),
-        "units": (True, ""),
+        "units": (False, "its loader sets a parameter's value without converting its unit"),
         "dictionary": (False, "its loader has no signal dictionaries"),
         "offsets": (True, ""),
-        "ssp2": (True, ""),
+        "ssp2": (False, "its loader knows the SSP 1.0 connector types only (no ssc:Float64)"),
     },
     "fmpy": {
         "hierarchy": (False, "run_fmpy_ssp drives flat archives; fmpy reads no system bindings"),
@@ -209,15 +209,42 @@ RUNS_AS_IS = {
 }
 
 
+def for_libcosim(path: Path, out: Path) -> Path:
+    """A copy of an archive without what libcosim 0.11 cannot take: ``ssc:Enumeration``
+    connectors (its SSP parser aborts: "Don't know how to handle Enumeration type!") and
+    Enumeration parameter values (it has no Enumeration variables: "No such variable").
+    Only Real outputs are compared, and the shape archives connect no Enumeration, so
+    the Real results do not change."""
+    with zipfile.ZipFile(path) as zin, zipfile.ZipFile(out, "w") as zout:
+        for info in zin.infolist():
+            data = zin.read(info)
+            if info.filename == "SystemStructure.ssd":
+                text = data.decode()
+                for pattern in (
+                    r"<ssd:Connector [^>]*>\s*<ssc:Enumeration [^>]*/>\s*</ssd:Connector>",
+                    r"<ssv:Parameter [^>]*>\s*<ssv:Enumeration [^>]*/>\s*</ssv:Parameter>",
+                ):
+                    text = re.sub(pattern, "", text)
+                assert "<ssc:Enumeration name" not in text.split("<ssd:Enumerations>")[0]
+                assert "<ssv:Enumeration" not in text
+                data = text.encode()
+            zout.writestr(info, data)
+    return out
+
+
 @pytest.mark.parametrize("name", RUNNABLE)
 def test_three_masters_agree(archives, runs, name, tmp_path: Path) -> None:
     ours = runs[name]
-    real = [n for n in ours.names[1:] if ours.types.get(n, "Real") == "Real"]
+    types = ours.metadata.get("types", {})
+    real = [n for n in ours.names[1:] if types.get(n, "Real") == "Real"]
     observe = [tuple(n.split(".", 1)) for n in real]
     flat = export_ssp(load_ssp(archives[name]), tmp_path / f"{name}-flat.ssp").path
     for master, run in (("libcosim", run_libcosim_ssp), ("fmpy", run_fmpy_ssp)):
         as_is, _why = RUNS_AS_IS[master][name]
-        other = run(archives[name] if as_is else flat, step=0.1, stop=1.0, observe=observe)
+        archive = archives[name] if as_is else flat
+        if master == "libcosim":
+            archive = for_libcosim(archive, tmp_path / f"{name}-lc.ssp")
+        other = run(archive, step=0.1, stop=1.0, observe=observe)
         assert len(other) == len(ours.data) == 11, master
         for n in real:
             diff = float(np.max(np.abs(other[n] - ours[n])))
