@@ -302,7 +302,7 @@ CASES = [
         SSD,
         bad(SSV, 'unit="min"', 'unit="fortnightz"'),
         "!resources/ship.ssv, key 'Parameter 'period[1]' (Component 'ship'/ParameterBinding[1])'"
-        ": unit 'fortnightz'",
+        ": unknown unit 'fortnightz'",
     ),
     (
         "missing resource",

@@ -34,7 +34,7 @@ from cosim.interop.cbuild import build_c_fmu
 from cosim.interop.fmpy_ssp import run_fmpy_ssp
 from cosim.interop.libcosim_runner import run_libcosim_ssp
 from cosim.interop.ssp import export_ssp
-from cosim.interop.ssp_import import SspScenario, load_ssp
+from cosim.interop.ssp_import import SspImportError, SspScenario, load_ssp
 from cosim.models.constants import DEG
 from cosim.scenario import build_master
 
@@ -249,3 +249,196 @@ def test_three_masters_agree(archives, runs, name, tmp_path: Path) -> None:
         for n in real:
             diff = float(np.max(np.abs(other[n] - ours[n])))
             assert diff <= TOL, f"{master} {name} {n}: {diff}"
+
+
+def edit(name: str, old: str, new: str, member: str = "SystemStructure.ssd"):
+    """One of the shape archives with ``old`` replaced by ``new`` in one of its files."""
+    ssd, files = sspshapes.ARCHIVES[name]
+    files = dict(files)
+    text = ssd if member == "SystemStructure.ssd" else files[member]
+    assert old in text, old
+    text = text.replace(old, new, 1)
+    if member == "SystemStructure.ssd":
+        return text, files
+    files[member] = text
+    return ssd, files
+
+
+REFUSALS = [
+    (
+        "unknown dictionary",
+        edit("dictionary", 'name="busOut" dictionary="nav"', 'name="busOut" dictionary="navi"'),
+        "SystemStructure.ssd, key 'System 'Bus'/SignalDictionaryReference 'busOut'': no "
+        "ssd:SignalDictionary 'navi' in this system or above it (defined: nav, plant)",
+    ),
+    (
+        "dictionary entry written twice",
+        edit(
+            "dictionary",
+            '<ssd:Connection startElement="busOut"',
+            '<ssd:Connection startElement="decay" startConnector="x" endElement="busIn" '
+            'endConnector="angle"/><ssd:Connection startElement="busOut"',
+        ),
+        "the signal dictionary entry 'angle' is already written by Connection flex.x -> "
+        "busIn.angle; an entry has one writer",
+    ),
+    (
+        "dictionary entry type",
+        edit(
+            "dictionary",
+            '<ssc:Real unit="rad"/></ssb:DictionaryEntry>',
+            "<ssc:Integer/></ssb:DictionaryEntry>",
+        ),
+        "the signal dictionary entry 'nav.angle' is declared Integer but carries flex.x, a "
+        "Real; declare Real",
+    ),
+    (
+        "dictionary file missing",
+        edit("dictionary", 'source="resources/plant.ssb"', 'source="resources/plant2.ssb"'),
+        "key 'System 'Bus'/SignalDictionary 'plant' source': 'resources/plant2.ssb' is not a "
+        "file inside the archive; expected an .ssb file",
+    ),
+    (
+        "flattened name taken",
+        edit(
+            "hierarchy",
+            '<ssd:Component name="sensor"',
+            '<ssd:Component name="deck_flex" source="resources/Decay.fmu"/>'
+            '<ssd:Component name="sensor"',
+        ),
+        "key 'System 'Plant'/Component 'deck_flex'': its flattened name 'deck_flex' (sub-system "
+        "path joined by '_') is taken by System 'deck'/Component 'flex'; rename one",
+    ),
+    (
+        "no such element",
+        edit(
+            "hierarchy",
+            'startElement="deck" startConnector="angle"',
+            'startElement="dek" startConnector="angle"',
+        ),
+        "key 'Connection dek.angle -> sensor.u': no element 'dek' in the system",
+    ),
+    (
+        "sub-system connector type",
+        edit(
+            "hierarchy",
+            '<ssd:Connector name="angle" kind="output"><ssc:Real/>',
+            '<ssd:Connector name="angle" kind="output"><ssc:Boolean/>',
+        ),
+        "the system connector 'deck.angle' is declared Boolean but carries deck_flex.x, a Real",
+    ),
+    (
+        "system parameter with no target",
+        edit("hierarchy", 'name="deck.flex.seed"', 'name="deck.flux.seed"'),
+        "key 'Parameter 'deck.flux.seed' of System 'Plant'/ParameterBinding[1]': System "
+        "'Plant' has no variable 'deck.flux.seed'",
+    ),
+    (
+        "mapping value not in the map",
+        edit(
+            "mapping", '<ssv:Integer value="5"/>', '<ssv:Integer value="6"/>', "resources/echo.ssv"
+        ),
+        "!resources/echo.ssm, key 'MappingEntry 'count' -> 'p_int'/IntegerMappingTransformation"
+        "': value 6 is not a source of the map ([5]); add it",
+    ),
+    (
+        "mapping target unknown",
+        edit("mapping", 'target="p_real"', 'target="p_rael"', "resources/echo.ssm"),
+        "!resources/echo.ssm, key 'Parameter 'gain' (Component 'echo'/ParameterBinding[1])': "
+        "Component 'echo' has no variable 'p_rael'",
+    ),
+    (
+        "mapping file missing",
+        edit("mapping", 'source="resources/echo.ssm"', 'source="echo.ssm"'),
+        "key 'Component 'echo'/ParameterBinding[1]/ParameterMapping source': 'echo.ssm' is "
+        "not a file inside the archive; expected an .ssm file in it",
+    ),
+    (
+        "mapping schema",
+        edit("mapping", 'target="p_int"', 'goal="p_int"', "resources/echo.ssm"),
+        "!resources/echo.ssm, key 'line 7': does not validate against the SSP 1.0 schema "
+        "SystemStructureParameterMapping.xsd",
+    ),
+    (
+        "unknown unit in an .ssv",
+        edit("units", 'unit="mrad"', 'unit="blorf"', "resources/sensor.ssv"),
+        "!resources/sensor.ssv, key 'Parameter 'bias' (Component 'sensor'/ParameterBinding[1])"
+        "': unknown unit 'blorf' (examples of valid units: rad, deg, arcmin, deg/h, "
+        "deg/sqrt(h), ug, ug/sqrt(Hz), m/s2, s, ms); define it with an ssc:Unit in the set's "
+        "ssv:Units or the SSD's ssd:Units",
+    ),
+    (
+        "unit of the wrong dimension",
+        edit("units", 'value="150" unit="ms"', 'value="150" unit="mrad"', "resources/sensor.ssv"),
+        "!resources/sensor.ssv, key 'Parameter 'time_constant' (Component 'sensor'/"
+        "ParameterBinding[1])': unit 'mrad' cannot be converted to 's' (dimensions rad and s); "
+        "give the value in a unit of the variable's dimension",
+    ),
+    (
+        "SSP 2.0 element ins-cosim does not import",
+        edit("ssp2", "<ssc:Int32/>", "<ssc:Clock/>"),
+        "does not validate against the SSP 1.0 schema SystemStructureDescription.xsd (an SSP "
+        "2.0 element that ins-cosim does not import; leave it out)",
+    ),
+    (
+        "SSP 2.0 connector type against the FMU",
+        edit(
+            "ssp2",
+            '<ssd:Connector name="x" kind="output"><ssc:Float64/>',
+            '<ssd:Connector name="x" kind="output"><ssc:Float32/>',
+        ),
+        "key 'Component 'decay'/Connector 'x'': the connector is declared ssc:Float32 but the "
+        "FMU's variable is Real; declare the FMU's type",
+    ),
+    (
+        "boolean mapping on a connection",
+        edit(
+            "offsets",
+            '<ssc:LinearTransformation factor="3.0" offset="-0.5"/>',
+            '<ssc:BooleanMappingTransformation><ssc:MapEntry source="true" target="false"/>'
+            "</ssc:BooleanMappingTransformation>",
+        ),
+        "key 'Connection decay.x -> echo.u_real/BooleanMappingTransformation': "
+        "BooleanMappingTransformation on a connection is not supported",
+    ),
+    (
+        "input fed twice",
+        edit(
+            "offsets",
+            "</ssd:Connections>",
+            '<ssd:Connection startElement="flex" startConnector="x" endElement="echo" '
+            'endConnector="u_real"/></ssd:Connections>',
+        ),
+        "the input echo.u_real is also fed by Connection decay.x -> echo.u_real; an input "
+        "takes one source",
+    ),
+]
+
+
+@pytest.mark.parametrize(("case", "archive", "message"), REFUSALS, ids=[r[0] for r in REFUSALS])
+def test_refusals_are_one_line_naming_archive_file_and_element(
+    fmus, tmp_path: Path, case: str, archive: tuple[str, dict[str, str]], message: str
+) -> None:
+    path = sspshapes.write(tmp_path / "bad.ssp", fmus, *archive)
+    with pytest.raises(SspImportError) as info:
+        load_ssp(path)
+    text = str(info.value)
+    assert "\n" not in text and text.startswith(f"{path}!"), text
+    assert message in text, text
+
+
+def test_the_cli_refuses_with_exit_3_and_no_traceback(cli, fmus, tmp_path: Path) -> None:
+    path = sspshapes.write(
+        tmp_path / "bad.ssp", fmus, *edit("offsets", 'factor="3.0"', 'factor="x"')
+    )
+    res = cli("check", path)
+    assert res.code == 3 and "Traceback" not in res.err, res.err
+    assert len(res.err.strip().splitlines()) == 1
+    assert f"{path}!SystemStructure.ssd" in res.err and "does not validate" in res.err
+    res = cli(
+        "run",
+        sspshapes.write(tmp_path / "bad2.ssp", fmus, *REFUSALS[0][1]),
+        "--out",
+        tmp_path / "out",
+    )
+    assert res.code == 3 and "Traceback" not in res.err and "navi" in res.err, res.err

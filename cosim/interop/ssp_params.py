@@ -257,9 +257,7 @@ def _value(
                     if table is None
                     else "give the value in a unit of the variable's dimension"
                 )
-                raise archive.error(
-                    file, where, f"unit '{unit}': {exc.message.rstrip('.')}; {how}"
-                ) from None
+                raise archive.error(file, where, f"{exc.message.rstrip('.')}; {how}") from None
         return value
     if kind == "Integer":
         return int(text)
