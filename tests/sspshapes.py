@@ -75,7 +75,7 @@ def connector(name: str, kind: str, vtype: str = "Real", attrs: str = "") -> str
     return f'<ssd:Connector name="{name}" kind="{kind}"><ssc:{vtype}{attrs}/></ssd:Connector>'
 
 
-GM = pset("gm", real("tau", 0.5) + real("sigma", 0.01) + integer("seed", 7))
+GAUSS_MARKOV_SET = pset("gm", real("tau", 0.5) + real("sigma", 0.01) + integer("seed", 7))
 
 # 1. hierarchy: sub-systems two deep, connectors in and out, bindings at three levels
 HIERARCHY = (
@@ -258,7 +258,7 @@ DICTIONARY = (
     HEAD.format(version="1.0", name="Dictionary")
     + f"""<ssd:System name="Bus"><ssd:Elements>
 <ssd:Component name="flex" source="resources/GaussMarkov2.fmu" {FMU}>
-<ssd:Connectors>{connector("x", "output")}</ssd:Connectors>{GM}
+<ssd:Connectors>{connector("x", "output")}</ssd:Connectors>{GAUSS_MARKOV_SET}
 </ssd:Component>
 <ssd:Component name="decay" source="resources/Decay.fmu" {FMU}>
 <ssd:Connectors>{connector("x", "output")}</ssd:Connectors>
@@ -304,7 +304,7 @@ OFFSETS = (
     HEAD.format(version="1.0", name="Offsets")
     + f"""<ssd:System name="Shifted"><ssd:Elements>
 <ssd:Component name="flex" source="resources/GaussMarkov2.fmu" {FMU}>
-<ssd:Connectors>{connector("x", "output")}</ssd:Connectors>{GM}
+<ssd:Connectors>{connector("x", "output")}</ssd:Connectors>{GAUSS_MARKOV_SET}
 </ssd:Component>
 <ssd:Component name="decay" source="resources/Decay.fmu" {FMU}>
 <ssd:Connectors>{connector("x", "output")}</ssd:Connectors>

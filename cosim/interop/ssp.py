@@ -426,7 +426,7 @@ def _describe(sc: Scenario, system: Any) -> tuple[ET.Element, dict[str, Any]]:
                     link,
                     _q(SSC, "LinearTransformation"),
                     factor=_number(c.factor),
-                    offset=_number(offset),
+                    offset=_number(offset) if offset else "0",
                 )
     if enums:
         enum_el = ET.SubElement(root, _q(SSD, "Enumerations"))
