@@ -168,6 +168,24 @@ def test_typed_connectors_are_read_and_written_back(archives, tmp_path: Path) ->
     assert again.blocks["echo"].parameters == sc.blocks["echo"].parameters
 
 
+def test_a_typed_link_between_declared_connectors_is_accepted(fmus, tmp_path: Path) -> None:
+    """Integer -> Integer and Boolean -> Boolean pass the import's type check (running
+    them is the master's part: tested after the merge with the typed-links branch)."""
+    ssd, files = sspshapes.ARCHIVES["typed"]
+    links = (
+        '<ssd:Connection startElement="decay" startConnector="n_int" endElement="echo" '
+        'endConnector="u_int"/><ssd:Connection startElement="echo" startConnector="y_bool" '
+        'endElement="echo" endConnector="u_bool"/></ssd:Connections>'
+    )
+    ssd = ssd.replace("</ssd:Connections>", links, 1)
+    sc = load_ssp(sspshapes.write(tmp_path / "typed_links.ssp", fmus, ssd, files))
+    assert "decay.n_int -> echo.u_int" in sc.connections
+    assert "echo.y_bool -> echo.u_bool" in sc.connections
+    bad = ssd.replace('endConnector="u_bool"', 'endConnector="u_str"')
+    with pytest.raises(SspImportError, match="a Boolean output .* to a String input"):
+        load_ssp(sspshapes.write(tmp_path / "mismatch.ssp", fmus, bad, files))
+
+
 @pytest.mark.parametrize("name", RUNNABLE)
 def test_import_export_import_is_the_same_scenario(archives, runs, name, tmp_path: Path) -> None:
     first = load_ssp(archives[name])
