@@ -212,6 +212,8 @@ class OffsetInputs:
         self._offsets = offsets
 
     def __getattr__(self, name: str) -> Any:
+        if name.startswith("__") or name in ("_host", "_offsets"):
+            raise AttributeError(name)  # copy/pickle probe before __init__ ran
         return getattr(self._host, name)
 
     def real_writer(self, vrs: list[int]) -> Callable[[np.ndarray], None]:
