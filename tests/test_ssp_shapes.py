@@ -279,13 +279,17 @@ def test_three_masters_agree(archives, runs, name, tmp_path: Path) -> None:
             assert all(np.array_equal(other[n], ours[n]) for n in ["time", *real]), name
 
 
-def edit(name: str, old: str, new: str, member: str = "SystemStructure.ssd"):
-    """One of the shape archives with ``old`` replaced by ``new`` in one of its files."""
+def edit(name: str, old: str, new: str, member: str = "SystemStructure.ssd", *more: str):
+    """One of the shape archives with ``old`` replaced by ``new`` in one of its files (and
+    the pairs ``more`` after it)."""
     ssd, files = sspshapes.ARCHIVES[name]
     files = dict(files)
     text = ssd if member == "SystemStructure.ssd" else files[member]
     assert old in text, old
     text = text.replace(old, new, 1)
+    for a, b in zip(more[::2], more[1::2], strict=True):
+        assert a in text, a
+        text = text.replace(a, b, 1)
     if member == "SystemStructure.ssd":
         return text, files
     files[member] = text
@@ -428,6 +432,40 @@ REFUSALS = [
         ),
         "key 'Connection decay.x -> echo.u_real/BooleanMappingTransformation': "
         "BooleanMappingTransformation on a connection is not supported",
+    ),
+    (
+        "loop of system connectors",
+        edit(
+            "hierarchy",
+            '<ssd:Connection startElement="flex" startConnector="x" endConnector="angle"/>',
+            '<ssd:Connection startElement="flex" startConnector="x" endConnector="angle"/>'
+            '<ssd:Connection startConnector="cmd" endConnector="angle"/>',
+            "SystemStructure.ssd",
+            '<ssd:Connection startElement="echo" startConnector="y_real" endElement="deck"',
+            '<ssd:Connection startElement="deck" startConnector="angle" endElement="deck" '
+            'endConnector="cmd"/><ssd:Connection startElement="echo" startConnector="y_real" '
+            'endElement="deck"',
+        ),
+        "the connection closes a loop",
+    ),
+    (
+        "dictionary without entries or source",
+        edit(
+            "dictionary",
+            '<ssd:SignalDictionary name="plant" source="resources/plant.ssb"/>',
+            '<ssd:SignalDictionary name="plant"/>',
+        ),
+        "key 'System 'Bus'/SignalDictionary 'plant'': no ssb:SignalDictionary inside and no source",
+    ),
+    (
+        "mapping of another type",
+        edit(
+            "mapping",
+            '<ssd:ParameterMapping source="resources/echo.ssm"/>',
+            '<ssd:ParameterMapping type="text/csv" source="resources/echo.ssm"/>',
+        ),
+        "key 'Component 'echo'/ParameterBinding[1]/ParameterMapping': type 'text/csv'; "
+        "expected application/x-ssp-parameter-mapping (.ssm)",
     ),
     (
         "input fed twice",
