@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.reproduce.seed000 import (
+from cosim.reproduce.seed000_noise import NoiseSensitivity, convergence_bound
+from cosim.reproduce.seed000_runs import (
     CONV_BAND,
     CONV_LIMIT,
     FAIL_LIMIT,
@@ -18,7 +19,6 @@ from cosim.reproduce.seed000 import (
     median,
     p95,
 )
-from cosim.reproduce.seed000_noise import NoiseSensitivity, convergence_bound
 
 
 def _fmt(x: float, digits: int = 1) -> str:
@@ -305,7 +305,7 @@ def markdown(
     Parameters
     ----------
     st : dict
-        Method -> :func:`cosim.reproduce.seed000.campaign_stats` of the main campaign.
+        Method -> :func:`cosim.reproduce.seed000_runs.campaign_stats` of the main campaign.
     fixed : dict
         Method -> its run 0.
     large : dict
