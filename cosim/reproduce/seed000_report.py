@@ -1,4 +1,4 @@
-"""The plots and the README block of the seed 000 reproduction (see :mod:`.seed000`)."""
+"""The plots and the published block of the seed 000 reproduction (see :mod:`.seed000`)."""
 
 from __future__ import annotations
 
@@ -300,7 +300,7 @@ def markdown(
     elapsed: float,
     sens: NoiseSensitivity | None = None,
 ) -> str:
-    """The README block of the seed 000 reproduction.
+    """The published block of the seed 000 reproduction.
 
     Parameters
     ----------
@@ -317,7 +317,7 @@ def markdown(
     seed : int
         Campaign seed.
     plots : list of str
-        Paths of the PNGs, as the README links them.
+        Paths of the PNGs, as the block links them.
     elapsed : float
         Wall time of the reproduction [s].
     sens : NoiseSensitivity, optional

@@ -92,7 +92,7 @@ def rerun(case: str, index: int, runs: int, seed: int) -> str:
 
 
 def reproduce(out_dir: Path, runs: int, seed: int, workers: int | None = None) -> str:
-    """Run every case of seed 001, write the plots, return the README block.
+    """Run every case of seed 001, write the plots, return the published block.
 
     Parameters
     ----------
@@ -257,7 +257,7 @@ def reproduce(out_dir: Path, runs: int, seed: int, workers: int | None = None) -
         "",
         *cov_rows,
         "",
-        "Plots (`--update-readme` publishes them to `docs/figures/seed001/`):",
+        "Plots (`--update-docs` publishes them to `docs/figures/seed001/`):",
         "",
     ]
     for png, alt in (

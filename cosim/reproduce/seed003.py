@@ -667,7 +667,7 @@ def _yes(ok: bool) -> str:
 
 
 def markdown(res: Seed003Run, files: list[str], image_dir: str = "") -> str:
-    """The README block: paper | ours | tolerance tables (numbers from :func:`summary`).
+    """The published block: paper | ours | tolerance tables (numbers from :func:`summary`).
 
     Parameters
     ----------
