@@ -348,3 +348,10 @@ def test_no_filter_class_or_seed_name_in_verify_or_the_core() -> None:
     # the checker sees what it must
     assert PAPER_WORDS.search("see seed 000") and PAPER_WORDS.search("cosim.reproduce.seed001")
     assert PAPER_WORDS.search("the HRG UPF") and not PAPER_WORDS.search("a seed of 7")
+
+
+@pytest.mark.parametrize("name", ["sins_north_finding_sway", "transfer_alignment_vehicle"])
+def test_a_filter_run_its_model_does_not_describe_has_no_budget(name: str) -> None:
+    """The swaying-base self-alignment (init_mode 2) and attitude matching run filters the
+    static and velocity-matching models are not: no model rather than a wrong budget."""
+    assert linear_model(ROOT / "scenarios" / f"{name}.toml") is None

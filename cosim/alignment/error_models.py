@@ -171,12 +171,17 @@ def _step(period: float) -> float:
     return 0.1 if k >= 1 and abs(k - round(k)) < 1e-9 else period
 
 
-def static_error_model(run: RunFacts) -> ScenarioErrorModel:
+def static_error_model(run: RunFacts) -> ScenarioErrorModel | None:
     """The 10-state psi-angle KF's model in a run (the SinsStaticAlignment block).
 
     The sensor errors split along north, east and down on a fixed base, along the
     table axes on a turntable (:func:`cosim.alignment.static_model.static_sources`);
     time 0 is the start of fine alignment.
+
+    The swaying-base self-alignment (``init_mode = 2``) starts its fine filter from the
+    inertial coarse theory's correlated covariance, on a specific force that sways and
+    with the lever arm in the update: this model is not that filter's, so it has none
+    (the report says so rather than give a budget that is not the filter's).
 
     Parameters
     ----------
@@ -185,7 +190,8 @@ def static_error_model(run: RunFacts) -> ScenarioErrorModel:
 
     Returns
     -------
-    ScenarioErrorModel
+    ScenarioErrorModel or None
+        None for ``init_mode = 2``.
     """
     from cosim.alignment.nav import euler_rate_matrix_inv
     from cosim.alignment.static_model import FilterTuning, static_lines, table_dcm
@@ -194,6 +200,8 @@ def static_error_model(run: RunFacts) -> ScenarioErrorModel:
     from cosim.models.turntable import Turntable
 
     a = run.parameters
+    if int(a["init_mode"]) == 2:
+        return None
     tuning = FilterTuning.from_parameters(a)
     base = run.find("StationaryBase")
     base_rpy = run.vector(base, "rpy0") if base else np.zeros(3)
@@ -277,11 +285,15 @@ def static_error_model(run: RunFacts) -> ScenarioErrorModel:
     )
 
 
-def transfer_error_model(run: RunFacts) -> ScenarioErrorModel:
+def transfer_error_model(run: RunFacts) -> ScenarioErrorModel | None:
     """The transfer filter's small-error model in a run (the TransferAlignment block).
 
     The model along the ship's closed-form motion (an ideal linear filter on the same
     data, not the block's two-stage bookkeeping); sensor errors per slave axis.
+
+    With attitude matching or lag estimation (``matching`` > 0, ``estimate_lag = 1``) the
+    block runs :class:`cosim.alignment.transfer_matching.MatchingFilter`, whose states
+    and measurements this velocity-matching model lacks: then there is none.
 
     Parameters
     ----------
@@ -290,7 +302,8 @@ def transfer_error_model(run: RunFacts) -> ScenarioErrorModel:
 
     Returns
     -------
-    ScenarioErrorModel
+    ScenarioErrorModel or None
+        None with attitude matching or lag estimation.
     """
     from cosim.alignment.nav import euler_rate_matrix_inv
     from cosim.alignment.transfer_analysis import ship_truth, transfer_lines
@@ -298,6 +311,8 @@ def transfer_error_model(run: RunFacts) -> ScenarioErrorModel:
     from cosim.models.constants import DEG_PER_HOUR, MICRO_G
 
     a = run.parameters
+    if int(a["matching"]) != 0 or int(a["estimate_lag"]) != 0:
+        return None
     tuning = TransferTuning(
         p0_pos=float(a["p0_pos"]),
         p0_vel=float(a["p0_vel"]),

@@ -297,7 +297,7 @@ class SinsStaticAlignment(Block):
             )
 
     @classmethod
-    def budget_model(cls, run: RunFacts) -> LinearErrorModel:
+    def budget_model(cls, run: RunFacts) -> LinearErrorModel | None:
         """The filter's linear error model for the budget (its P0, Q, R; the base's axes).
 
         Parameters

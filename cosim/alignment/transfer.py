@@ -350,7 +350,7 @@ class TransferAlignment(Block):
             )
 
     @classmethod
-    def budget_model(cls, run: RunFacts) -> LinearErrorModel:
+    def budget_model(cls, run: RunFacts) -> LinearErrorModel | None:
         """The small-error model along the ship's motion, for the budget.
 
         Parameters
