@@ -765,6 +765,8 @@ def reproduce(
         update_docs = True
     try:
         rep = reproductions.find(name)
+        if update_docs:  # before a long run: the page and its markers are there
+            reproductions.check_page(name)
     except UserError as exc:
         _fail(exc)
     runs = rep.DEFAULT_RUNS if runs is None else runs

@@ -176,24 +176,47 @@ def update_docs(page: Path, name: str, block: str) -> None:
         When the page or its markers are missing.
     """
     page = Path(page)
-    if not page.is_file():
-        raise ReproductionError(
-            f"{page}: no such page; run from the repository's root, or give the page "
-            "with its markers"
-        )
+    pattern = check_page(name, page)
     text = page.read_text(encoding="utf-8")
-    pattern = re.compile(
-        rf"(<!-- {re.escape(name)}:begin -->\n).*?(<!-- {re.escape(name)}:end -->)", re.S
-    )
-    if not pattern.search(text):
-        raise ReproductionError(
-            f"{page}: markers <!-- {name}:begin --> / <!-- {name}:end --> missing; add them "
-            "where the block goes"
-        )
     page.write_text(
         pattern.sub(lambda m: m.group(1) + block.rstrip() + "\n" + m.group(2), text),
         encoding="utf-8",
     )
+
+
+def check_page(name: str, page: Path = DOCS_PAGE) -> re.Pattern[str]:
+    """Check that a page has the markers of a reproduction's block.
+
+    Parameters
+    ----------
+    name : str
+        The reproduction's name.
+    page : Path
+        The page (default :data:`DOCS_PAGE`, relative to the working folder).
+
+    Returns
+    -------
+    re.Pattern
+        The pattern of the markers and the text between them.
+
+    Raises
+    ------
+    ReproductionError
+        When the page or its markers are missing.
+    """
+    page = Path(page)
+    if not page.is_file():
+        raise ReproductionError(
+            f"{page}: no such page; run from the repository's root (where {DOCS_PAGE} is)"
+        )
+    begin, end = re.escape(f"<!-- {name}:begin -->"), re.escape(f"<!-- {name}:end -->")
+    pattern = re.compile(rf"({begin}\n).*?({end})", re.S)
+    if not pattern.search(page.read_text(encoding="utf-8")):
+        raise ReproductionError(
+            f"{page}: markers <!-- {name}:begin --> / <!-- {name}:end --> missing; add them "
+            "where the block goes"
+        )
+    return pattern
 
 
 _IMAGE = re.compile(r"(!\[[^\]]*\]\()([^)]+\.png)(\))")
@@ -266,10 +289,7 @@ def publish(block: str, name: str, page: Path = DOCS_PAGE, root: Path | None = N
     """
     root = Path.cwd() if root is None else Path(root)
     target = page if Path(page).is_absolute() else root / page
-    if not target.is_file():  # before copying any figure
-        raise ReproductionError(
-            f"{target}: no such page; run from the repository's root, where {DOCS_PAGE} is"
-        )
+    check_page(name, target)  # before copying any figure
     try:
         update_docs(target, name, publish_figures(block, root, target, name))
     except OSError as exc:

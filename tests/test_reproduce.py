@@ -100,6 +100,17 @@ def test_the_cli_lists_and_refuses_by_the_registry(cli) -> None:  # noqa: ANN001
     assert "Traceback" not in res.err
 
 
+@pytest.mark.parametrize("flag", ["--update-docs", "--update-readme"])
+def test_update_docs_is_refused_before_running_without_the_page(cli, flag: str) -> None:  # noqa: ANN001
+    """In a folder without docs/reproductions.md: exit 3 at once, nothing run; the
+    deprecated --update-readme writes to the same page and says it is deprecated."""
+    res = cli("reproduce", "seed003", flag, "--runs", "1")
+    assert res.code == 3, (res.code, res.err)
+    assert "docs/reproductions.md: no such page" in res.err and "Traceback" not in res.err
+    assert ("deprecated" in res.err) == (flag == "--update-readme")
+    assert not res.out  # no reproduction ran
+
+
 @pytest.mark.parametrize("paper", SHIPPED)
 def test_published_figures_of_each_reproduction_are_committed(paper: str) -> None:
     page = published_page()
