@@ -319,13 +319,12 @@ PAPER_WORDS = re.compile(r"seed[\s_-]*0\d\d|\bhrg", re.I)
 
 
 def filter_class_names() -> set[str]:
-    """Every class the alignment and reproduction packages define, and every block the
-    distribution registers (pyproject's ``ins_cosim.blocks``), by name."""
+    """Every class the alignment package defines (the filters and their machinery) and every
+    block the distribution registers (pyproject's ``ins_cosim.blocks``), by name."""
     names = set()
-    for folder in ("cosim/alignment", "cosim/reproduce"):
-        for path in sorted((ROOT / folder).glob("*.py")):
-            tree = ast.parse(path.read_text(encoding="utf-8"))
-            names |= {n.name for n in ast.walk(tree) if isinstance(n, ast.ClassDef)}
+    for path in sorted((ROOT / "cosim" / "alignment").glob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        names |= {n.name for n in ast.walk(tree) if isinstance(n, ast.ClassDef)}
     project = tomllib.loads((ROOT / "pyproject.toml").read_text(encoding="utf-8"))
     names |= set(project["project"]["entry-points"]["ins_cosim.blocks"])
     return names
