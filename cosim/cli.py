@@ -710,20 +710,21 @@ def export_ssp(scenario: Path, out: Path, fmu_dir: Path, exclude: tuple[str, ...
 
 
 @main.command()
-@click.argument("paper", type=click.Choice(["seed000", "seed001", "seed003"]))
+@click.argument("name", required=False)
 @click.option(
     "--out",
     type=click.Path(path_type=Path),
     default=None,
-    help="Folder for plots and tables (default out/reproduce/PAPER).",
+    help="Folder for plots and tables (default out/reproduce/NAME).",
 )
-@click.option("--runs", type=int, default=None, help="Monte Carlo runs (default: the README's).")
-@click.option("--seed", type=int, default=None, help="Campaign seed (default: the README's).")
+@click.option("--runs", type=int, default=None, help="Monte Carlo runs (default: the docs').")
+@click.option("--seed", type=int, default=None, help="Campaign seed (default: the docs').")
 @click.option(
-    "--update-readme",
+    "--update-docs",
     is_flag=True,
-    help="Write the tables into README.md between the PAPER markers.",
+    help="Write the tables into the reproductions page between the NAME markers.",
 )
+@click.option("--update-readme", is_flag=True, hidden=True)  # deprecated: --update-docs
 @click.option(
     "--run",
     "run_index",
@@ -737,47 +738,59 @@ def export_ssp(scenario: Path, out: Path, fmu_dir: Path, exclude: tuple[str, ...
     help="The case of --run (e.g. 'lever 20 flexure 10 ignored'; default: the main campaign).",
 )
 def reproduce(
-    paper: str,
+    name: str | None,
     out: Path | None,
     runs: int | None,
     seed: int | None,
+    update_docs: bool,
     update_readme: bool,
     run_index: int | None,
     case: str | None,
 ) -> None:
-    """Reproduce a source paper (README, "References": seed 000, 001, 003): tables and plots.
+    """Reproduce a source paper (docs/reproductions.md): tables and plots.
 
-    Every run goes through the campaign engine of `verify`: `--run I` (with `--case`)
-    reruns one run alone with the numbers it has in the whole reproduction; the main
-    campaigns are also `ins-cosim verify SCENARIO --seed S --runs N --only-run I`.
+    NAME is a registered reproduction (entry-point group ins_cosim.reproductions);
+    without NAME the command lists them. Every run goes through the campaign engine of
+    `verify`: `--run I` (with `--case`) reruns one run alone with the numbers it has in
+    the whole reproduction.
     """
-    from cosim import reproduce as rep
+    from cosim import reproductions
 
-    runs = rep.DEFAULTS[paper][0] if runs is None else runs
-    seed = rep.DEFAULTS[paper][1] if seed is None else seed
-
+    if name is None:
+        for known, module in reproductions.names().items():
+            click.echo(f"{known}  ({module})")
+        return
+    if update_readme:
+        click.echo("warning: --update-readme is deprecated; it is --update-docs now", err=True)
+        update_docs = True
+    try:
+        rep = reproductions.find(name)
+        if update_docs:  # before a long run: the page and its markers are there
+            reproductions.check_page(name)
+    except UserError as exc:
+        _fail(exc)
+    runs = rep.DEFAULT_RUNS if runs is None else runs
+    seed = rep.DEFAULT_SEED if seed is None else seed
     if run_index is not None:
         try:
-            click.echo(rep.rerun(paper, case, run_index, runs, seed))
+            click.echo(rep.rerun(case or rep.DEFAULT_CASE, int(run_index), int(runs), int(seed)))
         except UserError as exc:
             _fail(exc)
         return
-    out = out or Path("out") / "reproduce" / paper
+    out = out or Path("out") / "reproduce" / name
+    out.mkdir(parents=True, exist_ok=True)
     try:
-        block = rep.reproduce(paper, out, runs, seed)
+        block = rep.reproduce(out, runs, seed)
     except UserError as exc:
         _fail(exc)
     (out / "tables.md").write_text(block)
     click.echo(block)
     click.echo(f"wrote {out / 'tables.md'} and the plots in {out}")
-    if update_readme:
-        readme = Path("README.md")
+    if update_docs:
         try:
-            rep.update_readme(readme, paper, rep.publish_figures(block, readme.parent, paper))
-        except (OSError, ValueError) as exc:
-            click.echo(f"error: {exc}", err=True)
-            sys.exit(3)
-        click.echo(f"updated the {paper} tables in {readme}")
+            click.echo(f"updated the {name} tables in {reproductions.publish(block, name)}")
+        except UserError as exc:
+            _fail(exc)
 
 
 if __name__ == "__main__":  # pragma: no cover

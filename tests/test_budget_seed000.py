@@ -3,7 +3,8 @@
 The shipped scenario (its filter the UPF) is budgeted with the KF (``method`` 2): the
 truth's sensor errors switched off one at a time in noise-free co-simulations, the
 measurement noises through the KF's gains and eq. (16)-(21) to first order
-(:mod:`cosim.verify.budget_hrg`). Seven 410 s co-simulations, about 15 s.
+(:mod:`cosim.alignment.hrg_budget`, the filter's budget model). Seven 410 s
+co-simulations, about 15 s.
 """
 
 from __future__ import annotations
@@ -14,9 +15,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from cosim.alignment.hrg_budget import HrgBudget
 from cosim.models.constants import ARCMIN, DEG_PER_HOUR
-from cosim.verify.budget import linear_model, scenario_values
-from cosim.verify.budget_hrg import HrgBudget
+from cosim.verify.budget import linear_model, scenario_facts
 from cosim.verify.campaign import prepare
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -28,7 +29,7 @@ STOP = 410.0
 def budget() -> tuple[HrgBudget, dict[str, dict]]:
     with pytest.warns(Warning):  # the platform-gyro feedback loop, as in every build
         prep = prepare(SCENARIO)
-    facts = scenario_values(SCENARIO)
+    facts = scenario_facts(SCENARIO)
     model = linear_model(SCENARIO, facts, prep.requirements)
     assert isinstance(model, HrgBudget)
     entries = {r.id: model.entry(r, STOP) for r in prep.requirements}

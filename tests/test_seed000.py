@@ -15,16 +15,8 @@ import numpy as np
 import pytest
 
 from cosim.models.constants import ARCMIN, OMEGA_IE
-from cosim.reproduce import seed000
-from cosim.reproduce.seed000 import (
-    CONV_LIMIT,
-    LARGE_AZIMUTHS,
-    STREAMS,
-    TABLE1,
-    UG_SQRT_HZ,
-    campaign,
-    reproduce,
-)
+from cosim.reproduce import seed000_runs as seed000
+from cosim.reproduce.seed000 import reproduce
 from cosim.reproduce.seed000_noise import (
     NoiseSensitivity,
     convergence_bound,
@@ -32,6 +24,14 @@ from cosim.reproduce.seed000_noise import (
     noise_sensitivity,
 )
 from cosim.reproduce.seed000_report import sensitivity_markdown, sensitivity_plot
+from cosim.reproduce.seed000_runs import (
+    CONV_LIMIT,
+    LARGE_AZIMUTHS,
+    STREAMS,
+    TABLE1,
+    UG_SQRT_HZ,
+    campaign,
+)
 from cosim.verify.campaign import CampaignError
 from cosim.verify.seeds import run_seeds
 

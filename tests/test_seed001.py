@@ -7,7 +7,6 @@ Default tests use few runs; the 30-run campaign, the sweeps and the full reprodu
 from __future__ import annotations
 
 import math
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -16,8 +15,8 @@ import pytest
 from cosim.alignment.transfer_analysis import transfer_covariance
 from cosim.alignment.transfer_model import StateLayout
 from cosim.models.constants import ARCMIN
-from cosim.reproduce import update_readme
-from cosim.reproduce.seed001 import (
+from cosim.reproduce.seed001 import reproduce
+from cosim.reproduce.seed001_runs import (
     HEADING_LIMIT,
     HEADINGS,
     LEVEL_TOL,
@@ -25,10 +24,10 @@ from cosim.reproduce.seed001 import (
     SEEDED,
     make_case,
     plan,
-    reproduce,
     run_cases,
     stats,
 )
+from cosim.reproductions import update_docs
 from cosim.verify.campaign import CampaignError, campaign_jobs, prepare, run_campaign
 from cosim.verify.records import decimation
 from cosim.verify.seeds import latin_hypercube_normal
@@ -257,7 +256,7 @@ def test_reproduce_writes_the_readme_block(tmp_path: Path) -> None:
         assert title in md
     for png in ("modelled_vs_ignored", "lever_arm", "heading_sweep"):
         assert (tmp_path / f"seed001_{png}.png").stat().st_size > 10_000
-    readme = tmp_path / "README.md"
-    shutil.copy(ROOT / "README.md", readme)
-    update_readme(readme, "seed001", md)
-    assert "Table 1 of seed 001" in readme.read_text()
+    page = tmp_path / "reproductions.md"
+    page.write_text("# Reproductions\n<!-- seed001:begin -->\nold\n<!-- seed001:end -->\n")
+    update_docs(page, "seed001", md)
+    assert "Table 1 of seed 001" in page.read_text() and "old" not in page.read_text()

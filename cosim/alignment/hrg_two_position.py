@@ -12,6 +12,7 @@ import math
 
 from cosim.alignment.hrg_filters import TwoPositionAligner
 from cosim.alignment.hrg_model import PSI, UNIFORM_SIGMA
+from cosim.estimation.error_model import RunFacts, SignalBudgetModel
 from cosim.models.block import Block, input_, output, parameter
 from cosim.models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0
 from cosim.models.conventions import wrap_angle
@@ -83,6 +84,24 @@ class HrgTwoPositionAlignment(Block):
     default_stop = 2.0
     step_multiples = ("period",)
     shared_values = {"lat": "latitude", "g": "gravity"}
+
+    @classmethod
+    def budget_model(cls, run: RunFacts) -> SignalBudgetModel | None:
+        """The first-order budget with the linear KF's model (it simulates the run).
+
+        Parameters
+        ----------
+        run : RunFacts
+            The run's facts (:class:`cosim.estimation.error_model.BudgetedFilter`).
+
+        Returns
+        -------
+        HrgBudget or None
+            :class:`cosim.alignment.hrg_budget.HrgBudget`; None without requirements.
+        """
+        from cosim.alignment.hrg_budget import HrgBudget
+
+        return HrgBudget(run) if run.requirements else None
 
     def initialize(self) -> None:
         self._core = TwoPositionAligner(

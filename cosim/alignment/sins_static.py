@@ -93,6 +93,7 @@ from cosim.alignment.static_model import (
     table_dcm,
 )
 from cosim.estimation import KalmanFilter
+from cosim.estimation.error_model import LinearErrorModel, RunFacts
 from cosim.models.block import Block, input_, output, parameter
 from cosim.models.constants import ARCMIN, DEG
 from cosim.models.conventions import (
@@ -294,6 +295,24 @@ class SinsStaticAlignment(Block):
                 f"q_gyro, q_accel, p0_gyro_drift, p0_accel_bias) above coarse_sigma_max = "
                 f"{smax / ARCMIN:.1f} arcmin, beyond the fine filter's linear model: {fix}"
             )
+
+    @classmethod
+    def budget_model(cls, run: RunFacts) -> LinearErrorModel | None:
+        """The filter's linear error model for the budget (its P0, Q, R; the base's axes).
+
+        Parameters
+        ----------
+        run : RunFacts
+            The run's facts (:class:`cosim.estimation.error_model.BudgetedFilter`).
+
+        Returns
+        -------
+        LinearErrorModel
+            :func:`cosim.alignment.error_models.static_error_model`.
+        """
+        from cosim.alignment.error_models import static_error_model
+
+        return static_error_model(run)
 
     def initialize(self) -> None:
         self._check()

@@ -68,8 +68,8 @@ from cosim.estimation.covariance import (
     CovarianceBudget,
     CovarianceHistory,
     covariance_analysis,
-    covariance_budget,
 )
+from cosim.estimation.error_model import StepGrid, propagate
 from cosim.models.constants import DEG, DEG_PER_HOUR, MICRO_G, OMEGA_IE
 from cosim.models.conventions import euler_to_dcm_3
 from cosim.models.earth import gravity
@@ -534,35 +534,138 @@ def static_budget(
     AlignmentConfigError
         When the steps do not fit.
     """
+    lines = static_lines(
+        t_end,
+        tuning=tuning,
+        lat=lat,
+        h=h,
+        dt=dt,
+        kf_period=kf_period,
+        angle=angle,
+        base_rpy=base_rpy,
+        coriolis=coriolis,
+        record_every=record_every,
+    )
+    return propagate(lines)
+
+
+@dataclass(frozen=True)
+class StaticLines:
+    """The 10-state filter's error model split into budget lines (:func:`static_lines`).
+
+    The numerical half of :class:`cosim.estimation.error_model.LinearErrorModel`
+    (``grid``, ``names``, ``initial_covariance``, ``dynamics``, ``step_key``,
+    ``measurement``); :mod:`cosim.alignment.error_models` adds the scenario's half.
+
+    Attributes
+    ----------
+    model : object
+        Steps, base attitude and table angles (this module's table model).
+    grid : StepGrid
+        Steps of ``dt``, rows kept every ``record_every`` steps and at 0.
+    P0_parts : dict
+        :func:`static_sources` of the tuning.
+    Qc_parts : dict
+        Accelerometer and gyro white noise, each (5, 5) [SI^2 s].
+    H : ndarray, shape (2, 10)
+        Zero-velocity measurement.
+    R : dict
+        The measurement noise, (2, 2) [m^2/s^2].
+    names : tuple of str
+        :data:`STATES`.
+    """
+
+    model: _TableModel
+    grid: StepGrid
+    P0_parts: dict[str, FloatArray]
+    Qc_parts: dict[str, FloatArray]
+    H: FloatArray
+    R: dict[str, FloatArray]
+    names: tuple[str, ...] = STATES
+
+    def initial_covariance(self) -> dict[str, FloatArray]:
+        """P0 by line, each (10, 10) [SI^2]."""
+        return self.P0_parts
+
+    def dynamics(self, k: int) -> tuple[FloatArray, FloatArray, dict[str, FloatArray]]:
+        """``F`` at step ``k``'s midpoint (10, 10), ``G`` (10, 5), ``Qc`` by line.
+
+        Parameters
+        ----------
+        k : int
+            Step index (step ``k`` ends at ``(k + 1) dt``).
+        """
+        return self.model.F(k), noise_input(), self.Qc_parts
+
+    def step_key(self, k: int) -> float:
+        """The encoder angle of step ``k`` (its encoder angle, rounded).
+
+        Parameters
+        ----------
+        k : int
+            Step index (step ``k`` ends at ``(k + 1) dt``).
+        """
+        return self.model.key(k)
+
+    def measurement(self, k: int) -> tuple[FloatArray, dict[str, FloatArray]] | None:
+        """The zero-velocity update after every ``kf_period``, else None.
+
+        Parameters
+        ----------
+        k : int
+            Step index (step ``k`` ends at ``(k + 1) dt``).
+        """
+        return (self.H, self.R) if (k + 1) % self.model.k_upd == 0 else None
+
+
+def static_lines(
+    t_end: float,
+    *,
+    tuning: FilterTuning = SEED003,
+    lat: float = 45.0 * DEG,
+    h: float = 0.0,
+    dt: float = 0.1,
+    kf_period: float = 0.1,
+    angle: Callable[[FloatArray], FloatArray] | None = None,
+    base_rpy: ArrayLike = (0.0, 0.0, 0.0),
+    coriolis: bool = False,
+    record_every: int = 1,
+) -> StaticLines:
+    """The budget lines of :func:`static_budget` (same arguments), not yet propagated.
+
+    Parameters
+    ----------
+    t_end : float
+        Duration [s] (a multiple of ``dt``).
+    tuning : FilterTuning
+        P0, Q, R.
+    lat, h : float
+        Latitude [rad], height [m].
+    dt : float
+        Propagation step [s].
+    kf_period : float
+        Measurement period [s].
+    angle : callable, optional
+        Encoder angle ``gamma(t)`` [rad]; None: no table.
+    base_rpy : array_like, shape (3,)
+        Base attitude [rad].
+    coriolis : bool
+        Include the Coriolis terms.
+    record_every : int
+        Keep every k-th step.
+
+    Returns
+    -------
+    StaticLines
+    """
     m = _table_model(t_end, lat, h, dt, kf_period, angle, base_rpy, coriolis)
-    G = noise_input()
     q = np.diag(tuning.Qc())
     Qc_parts = {
         "accelerometer white noise": np.diag(np.where(np.arange(5) < 2, q, 0.0)),
         "gyro white noise": np.diag(np.where(np.arange(5) >= 2, q, 0.0)),
     }
     R = {"measurement noise (zero velocity)": tuning.R()}
-    H = measurement_matrix()
     gamma0 = 0.0 if angle is None else float(np.asarray(angle(np.zeros(1)), dtype=float)[0])
     P0_parts = static_sources(tuning, m.c_b_n @ table_dcm(gamma0), nav_axes=angle is None)
-    cache: dict[float, tuple[FloatArray, dict[str, FloatArray]]] = {}  # by encoder angle
-
-    def transition(i: int) -> tuple[FloatArray, dict[str, FloatArray]]:
-        key = m.key(i)
-        if key not in cache:
-            F = m.F(i)
-            Qd = {}
-            for s, Qc in Qc_parts.items():
-                Phi, Qd[s] = van_loan(F, G, Qc, dt)
-            cache[key] = (Phi, Qd)
-        return cache[key]
-
-    return covariance_budget(
-        P0_parts,
-        m.n,
-        dt,
-        transition,
-        lambda i: (H, R) if (i + 1) % m.k_upd == 0 else None,
-        record_every=record_every,
-        names=STATES,
-    )
+    grid = StepGrid(dt, m.n, record_every)
+    return StaticLines(m, grid, P0_parts, Qc_parts, measurement_matrix(), R)

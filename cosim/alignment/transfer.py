@@ -134,6 +134,7 @@ from cosim.alignment.transfer_model import (
     TransferTuning,
     master_rate,
 )
+from cosim.estimation.error_model import LinearErrorModel, RunFacts
 from cosim.models import native
 from cosim.models.block import Block, input_, output, parameter
 from cosim.models.constants import ARCMIN, DEG, E2, A
@@ -347,6 +348,24 @@ class TransferAlignment(Block):
             raise TransferConfigError(
                 f"TransferAlignment.ukf_alpha must be > 0, got {self.ukf_alpha}"
             )
+
+    @classmethod
+    def budget_model(cls, run: RunFacts) -> LinearErrorModel | None:
+        """The small-error model along the ship's motion, for the budget.
+
+        Parameters
+        ----------
+        run : RunFacts
+            The run's facts (:class:`cosim.estimation.error_model.BudgetedFilter`).
+
+        Returns
+        -------
+        LinearErrorModel
+            :func:`cosim.alignment.error_models.transfer_error_model`.
+        """
+        from cosim.alignment.error_models import transfer_error_model
+
+        return transfer_error_model(run)
 
     def initialize(self) -> None:
         self._check()

@@ -26,8 +26,8 @@ from cosim.estimation.covariance import (
     CovarianceBudget,
     CovarianceHistory,
     covariance_analysis,
-    covariance_budget,
 )
+from cosim.estimation.error_model import StepGrid, propagate
 from cosim.models.constants import DEG, OMEGA_IE
 from cosim.models.conventions import cross, euler_to_dcm
 from cosim.models.earth import euler_motion_truth
@@ -371,50 +371,134 @@ def transfer_budget(
         When ``dt`` does not divide ``update_period``.
     """
     m = _ship_model(t_end, r0, mount_rpy, lat, amp, period, tuning, flexure, update_period, dt)
-    layout, n = m.layout, m.layout.n
-    R = {"measurement noise (velocity matching)": m.R}
-    P0 = m.tuning.P0(layout, lat)
-    P0_parts: dict[str, FloatArray] = {}
+    return propagate(TransferLines(m))
 
-    def piece(idx: list[int]) -> FloatArray:
-        part = np.zeros_like(P0)
-        part[np.ix_(idx, idx)] = P0[np.ix_(idx, idx)]
-        return part
 
-    att = list(range(n))[layout.att]
-    P0_parts["initial position error"] = piece([layout.dl])
-    P0_parts["initial velocity error"] = piece(list(range(n))[layout.dv])
-    P0_parts["initial level misalignment"] = piece(att[0:2])
-    P0_parts["initial heading misalignment"] = piece(att[2:3])
-    if flexure:
-        P0_parts["initial flexure"] = piece(list(range(n))[layout.xi])
-    for name, sl in (("accelerometer bias", layout.nabla), ("gyro drift", layout.eps)):
-        for axis, i in zip("xyz", list(range(n))[sl], strict=True):
-            P0_parts[f"{name} {axis}"] = piece([i])
-    cache: dict[int, tuple[FloatArray, dict[str, FloatArray]]] = {}
+@dataclasses.dataclass(frozen=True)
+class TransferLines:
+    """The small-error model along the ship split into budget lines (:func:`transfer_budget`).
 
-    def transition(k: int) -> tuple[FloatArray, dict[str, FloatArray]]:
-        key = m.key(k)
-        if key not in cache:
-            A = m.A(k)
-            Qd = {}
-            for s, Qc in m.Qc.items():
-                Phi, Qd[s] = van_loan(A, m.G, Qc, dt)
-            cache[key] = (Phi, Qd)
-        return cache[key]
+    The numerical half of :class:`cosim.estimation.error_model.LinearErrorModel`
+    (``grid``, ``names``, ``initial_covariance``, ``dynamics``, ``step_key``,
+    ``measurement``); :mod:`cosim.alignment.error_models` adds the scenario's half.
 
-    def measurement(k: int) -> tuple[FloatArray, dict[str, FloatArray]] | None:
-        H = m.H(k)
-        return None if H is None else (H, R)
+    Attributes
+    ----------
+    model : object
+        Steps, kinematics and noises (this module's ship model).
+    """
 
-    budget = covariance_budget(
-        P0_parts,
-        m.n_steps,
-        dt,
-        transition,
-        measurement,
-        record_every=m.k_up,
-        include_start=False,
-        names=layout.names,
+    model: _ShipModel
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """State names of :class:`StateLayout`."""
+        return self.model.layout.names
+
+    @property
+    def grid(self) -> StepGrid:
+        """Steps of ``dt``; a row after each update, at ``j update_period``."""
+        m = self.model
+        return StepGrid(m.dt, m.n_steps, m.k_up, False, m.t_up)
+
+    def initial_covariance(self) -> dict[str, FloatArray]:
+        """P0 by line: initial position, velocity, level, heading (flexure), and the
+        accelerometer bias and gyro drift per slave axis, each (n, n) [SI^2]."""
+        m = self.model
+        layout, n = m.layout, m.layout.n
+        P0 = m.tuning.P0(layout, m.lat)
+        P0_parts: dict[str, FloatArray] = {}
+
+        def piece(idx: list[int]) -> FloatArray:
+            part = np.zeros_like(P0)
+            part[np.ix_(idx, idx)] = P0[np.ix_(idx, idx)]
+            return part
+
+        att = list(range(n))[layout.att]
+        P0_parts["initial position error"] = piece([layout.dl])
+        P0_parts["initial velocity error"] = piece(list(range(n))[layout.dv])
+        P0_parts["initial level misalignment"] = piece(att[0:2])
+        P0_parts["initial heading misalignment"] = piece(att[2:3])
+        if layout.flexure:
+            P0_parts["initial flexure"] = piece(list(range(n))[layout.xi])
+        for name, sl in (("accelerometer bias", layout.nabla), ("gyro drift", layout.eps)):
+            for axis, i in zip("xyz", list(range(n))[sl], strict=True):
+                P0_parts[f"{name} {axis}"] = piece([i])
+        return P0_parts
+
+    def dynamics(self, k: int) -> tuple[FloatArray, FloatArray, dict[str, FloatArray]]:
+        """``F`` at step ``k``'s midpoint (n, n), ``G`` (n, 9), ``Qc`` by line (9, 9).
+
+        Parameters
+        ----------
+        k : int
+            Step index (step ``k`` ends at ``(k + 1) dt``).
+        """
+        m = self.model
+        return m.A(k), m.G, m.Qc
+
+    def step_key(self, k: int) -> int:
+        """Step ``k`` within the ship's period (the motion's repeat).
+
+        Parameters
+        ----------
+        k : int
+            Step index (step ``k`` ends at ``(k + 1) dt``).
+        """
+        return self.model.key(k)
+
+    def measurement(self, k: int) -> tuple[FloatArray, dict[str, FloatArray]] | None:
+        """Velocity matching after every ``update_period``: ``H`` (3, n), its noise.
+
+        Parameters
+        ----------
+        k : int
+            Step index (step ``k`` ends at ``(k + 1) dt``).
+        """
+        H = self.model.H(k)
+        return None if H is None else (H, {"measurement noise (velocity matching)": self.model.R})
+
+
+def transfer_lines(
+    t_end: float = 120.0,
+    *,
+    r0: ArrayLike = (10.0, 10.0, 5.0),
+    mount_rpy: ArrayLike = (1.0 * DEG, 1.0 * DEG, 30.0 * DEG),
+    lat: float = 30.0 * DEG,
+    amp: ArrayLike = (12.5 * DEG, 10.0 * DEG, 5.0 * DEG),
+    period: ArrayLike = (12.0, 6.0, 8.0),
+    tuning: TransferTuning | None = None,
+    flexure: bool = False,
+    update_period: float = 0.5,
+    dt: float = 0.1,
+) -> TransferLines:
+    """The budget lines of :func:`transfer_budget` (same arguments), not yet propagated.
+
+    Parameters
+    ----------
+    t_end : float
+        Duration [s].
+    r0 : array_like, shape (3,)
+        Lever arm, master axes [m].
+    mount_rpy : array_like, shape (3,)
+        Slave mounting [rad].
+    lat : float
+        Latitude [rad].
+    amp, period : array_like, shape (3,)
+        Ship roll/pitch/yaw amplitude [rad] and period [s].
+    tuning : TransferTuning, optional
+        P0, noises (default seed 001's).
+    flexure : bool
+        Include the flexure states.
+    update_period : float
+        Velocity-matching period [s].
+    dt : float
+        Propagation step [s]; must divide ``update_period``.
+
+    Returns
+    -------
+    TransferLines
+    """
+    return TransferLines(
+        _ship_model(t_end, r0, mount_rpy, lat, amp, period, tuning, flexure, update_period, dt)
     )
-    return dataclasses.replace(budget, time=m.t_up)

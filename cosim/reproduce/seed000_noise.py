@@ -1,7 +1,7 @@
 """Seed 000: the convergence time's sensitivity to the assumed accelerometer noise.
 
 The paper gives no accelerometer noise; :func:`noise_sensitivity` runs the paper-truth
-campaign of :mod:`cosim.reproduce.seed000` at several densities, and
+campaign of :mod:`cosim.reproduce.seed000_runs` at several densities, and
 :func:`convergence_bound` gives the Cramer-Rao time no unbiased estimator can beat.
 """
 
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from cosim.models.constants import ARCMIN, OMEGA_IE
-from cosim.reproduce.seed000 import (
+from cosim.reproduce.seed000_runs import (
     CONV_BAND,
     CONV_LIMIT,
     NOISE_DENSITIES,

@@ -1,4 +1,4 @@
-"""The plots and the README block of the seed 000 reproduction (see :mod:`.seed000`)."""
+"""The plots and the published block of the seed 000 reproduction (see :mod:`.seed000`)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.reproduce.seed000 import (
+from cosim.reproduce.seed000_noise import NoiseSensitivity, convergence_bound
+from cosim.reproduce.seed000_runs import (
     CONV_BAND,
     CONV_LIMIT,
     FAIL_LIMIT,
@@ -18,7 +19,6 @@ from cosim.reproduce.seed000 import (
     median,
     p95,
 )
-from cosim.reproduce.seed000_noise import NoiseSensitivity, convergence_bound
 
 
 def _fmt(x: float, digits: int = 1) -> str:
@@ -300,12 +300,12 @@ def markdown(
     elapsed: float,
     sens: NoiseSensitivity | None = None,
 ) -> str:
-    """The README block of the seed 000 reproduction.
+    """The published block of the seed 000 reproduction.
 
     Parameters
     ----------
     st : dict
-        Method -> :func:`cosim.reproduce.seed000.campaign_stats` of the main campaign.
+        Method -> :func:`cosim.reproduce.seed000_runs.campaign_stats` of the main campaign.
     fixed : dict
         Method -> its run 0.
     large : dict
@@ -317,7 +317,7 @@ def markdown(
     seed : int
         Campaign seed.
     plots : list of str
-        Paths of the PNGs, as the README links them.
+        Paths of the PNGs, as the block links them.
     elapsed : float
         Wall time of the reproduction [s].
     sens : NoiseSensitivity, optional

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from cosim.reproduce.seed001 import (
+from cosim.reproduce.seed001_runs import (
     AXES,
     HEADING_LIMIT,
     LEVER_ARMS,

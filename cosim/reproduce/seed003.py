@@ -279,6 +279,8 @@ def campaign(
 PERFECT_IMU = {k: 0.0 for k in ("gyro_bias_sigma", "gyro_arw", "accel_bias_sigma", "accel_vrw")}
 #: The campaigns of the reproduction (:func:`cases`).
 CASES = ("static", "rotating", "coarse", "perfect")
+#: ``ins-cosim reproduce`` defaults: the published block's runs and seed, ``--run``'s case.
+DEFAULT_RUNS, DEFAULT_SEED, DEFAULT_CASE = 50, 2024, "static"
 
 
 def cases(fs: ScenarioFacts, fr: ScenarioFacts) -> dict[str, tuple[Path, dict[str, Any]]]:
@@ -665,7 +667,7 @@ def _yes(ok: bool) -> str:
 
 
 def markdown(res: Seed003Run, files: list[str], image_dir: str = "") -> str:
-    """The README block: paper | ours | tolerance tables (numbers from :func:`summary`).
+    """The published block: paper | ours | tolerance tables (numbers from :func:`summary`).
 
     Parameters
     ----------

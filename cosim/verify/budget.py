@@ -3,25 +3,24 @@
 For a filter with a linear covariance model the estimation error is a sum of
 independent contributions, one per source (initial errors, each sensor bias and drift
 component, each white noise, the measurement noise, the flexure):
-:func:`cosim.estimation.covariance.covariance_budget` propagates each part with the
+:func:`cosim.estimation.error_model.propagate` propagates each part with the
 filter's own gain, so the parts add up to the filter's covariance exactly. A
 requirement's signal is a linear function of the error state, ``y = h e`` (``h`` a row
 vector, e.g. a heading error ``-M_3 psi`` of the psi angle), so its variance splits as
 ``h P h^T = sum_s h P_s h^T``.
 
 The time of the budget: a ``value`` requirement at its ``at`` (default the stop time);
-a ``bound`` requirement over ``[from, until]`` is reduced to the time in the window
-where the model's total variance is largest (the parts at that time); a ``settling``
-requirement has no budget (its metric is a time, not a linear function of the error).
+a ``bound`` requirement over ``[from, until]`` is reduced to the mean over the window's
+times of the analysis (each part averaged the same way); a ``settling`` requirement has
+no budget (its metric is a time, not a linear function of the error).
 
-Models known here (the block's class in the scenario, its parameters from the file):
-
-- ``SinsStaticAlignment`` (seed 003, static and turntable):
-  :func:`cosim.alignment.static_model.static_budget`; the sensor errors split along
-  north/east/down on a fixed base, along the table axes on a turntable;
-- ``TransferAlignment`` (seed 001): :func:`cosim.alignment.transfer_analysis.transfer_budget`,
-  the small-error model along the ship's closed-form motion (an ideal filter on the same
-  data, not the block's two-stage bookkeeping); sensor errors per slave axis.
+Which filter, which model: none is known here by name. A block class that implements
+:class:`cosim.estimation.error_model.BudgetedFilter` (a class method ``budget_model``)
+is asked for its model with the run's facts
+(:class:`~cosim.estimation.error_model.RunFacts`); it returns a
+:class:`~cosim.estimation.error_model.LinearErrorModel` (budgeted here), a
+:class:`~cosim.estimation.error_model.SignalBudgetModel` (that budgets each
+requirement itself) or None. docs/error_budget.md shows a user's filter doing it.
 
 Beside it the campaign's evidence (:mod:`cosim.verify.regression`): each run's signed
 error at the budget's time regressed on the parameters the campaign drew, with the slope
@@ -32,7 +31,6 @@ parameter enters the initial error).
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -41,7 +39,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from cosim.estimation.covariance import CovarianceBudget
-from cosim.verify.budget_hrg import HrgBudget
+from cosim.estimation.error_model import (
+    METHOD,
+    LinearErrorModel,
+    RunFacts,
+    SignalBudgetModel,
+    propagate,
+)
 from cosim.verify.regression import (  # noqa: F401  (budget_html, budget_figure: report API)
     NO_MODEL,
     RECORDED_METHOD,
@@ -52,45 +56,122 @@ from cosim.verify.regression import (  # noqa: F401  (budget_html, budget_figure
     recorded_draws,
     regression_table,
 )
-from cosim.verify.requirements import Requirement
+from cosim.verify.requirements import Requirement, error_signal
 from cosim.verify.seeds import Stratified
 
 FloatArray = NDArray[np.float64]
 
 
-@dataclass
+@dataclass(frozen=True)
 class LinearModel:
-    """A filter's linear error model, ready to budget requirements.
+    """A filter's linear error model with its covariance split by line, ready to budget.
 
     Attributes
     ----------
-    block : str
-        The filter block's name in the scenario.
-    description : str
-        What the model is (for the report).
+    model : LinearErrorModel
+        The filter's model (its block, description, rows and regressors).
     budget : CovarianceBudget
-        The covariance split by source.
-    t0 : float
-        Simulation time of the budget's time 0 [s].
-    row : callable
-        ``row(variable, t) -> h``: the signal ``block.variable`` as a row vector over the
-        error state [rad per state SI unit] at simulation time ``t``, or None.
-    regressors : callable
-        ``regressors(draws) -> list of Regressor`` from the drawn parameters
-        (``"block.name"`` -> ndarray (runs, size), SI).
+        :func:`cosim.estimation.error_model.propagate` of it.
     """
 
-    block: str
-    description: str
+    model: LinearErrorModel
     budget: CovarianceBudget
-    t0: float
-    row: Callable[[str, float], FloatArray | None]
-    regressors: Callable[[dict[str, FloatArray]], list[Regressor]]
+
+    @property
+    def block(self) -> str:
+        """The filter block's name in the scenario."""
+        return self.model.block
+
+    @property
+    def description(self) -> str:
+        """What the model is (for the report)."""
+        return self.model.description
+
+    @property
+    def t0(self) -> float:
+        """Simulation time of the budget's time 0 [s]."""
+        return float(self.model.t0)
+
+    def row(self, variable: str, t: float) -> FloatArray | None:
+        """The signal ``block.variable`` as a row over the error state at time ``t``, or None.
+
+        Parameters
+        ----------
+        variable : str
+            An output of the filter block (``"rpy_err[3]"``).
+        t : float
+            Simulation time [s].
+        """
+        return self.model.signal_row(variable, t)
+
+    def regressors(self, draws: dict[str, FloatArray]) -> list[Regressor]:
+        """The drawn parameters (``"block.name"`` -> (runs, size), SI) the model knows.
+
+        Parameters
+        ----------
+        draws : mapping
+            ``"block.name"`` -> ndarray (runs, size) [SI], the campaign's drawn parameters.
+        """
+        return self.model.regressors(draws)
 
 
 # ------------------------------------------------------------------ scenario facts
+@dataclass(frozen=True)
+class BuiltScenario:
+    """A scenario built (not run): its parameters and its blocks' classes.
+
+    Attributes
+    ----------
+    scenario : Scenario
+        The parsed file.
+    values : dict
+        ``{block: {parameter: SI value}}``, the file's values over the defaults.
+    classes : dict
+        ``{block: class}`` of the in-process blocks (an FMU has none).
+    """
+
+    scenario: Any
+    values: dict[str, dict[str, Any]]
+    classes: dict[str, type]
+
+
+def scenario_facts(path: str | Path) -> BuiltScenario:
+    """The scenario, every block's parameters (file values over the defaults, SI), classes.
+
+    Parameters
+    ----------
+    path : str or Path
+        Scenario file (built, not run).
+
+    Returns
+    -------
+    BuiltScenario
+    """
+    import warnings
+
+    from cosim.scenario import load_scenario
+
+    scenario = load_scenario(path)
+    with warnings.catch_warnings():  # the campaign has shown them (feedback loops, ...)
+        warnings.simplefilter("ignore")
+        system, _ = scenario.build()
+    try:
+        values = {}
+        classes = {}
+        for name, host in system.blocks.items():
+            defaults = {v.name: v.start for v in host.variables.values()}
+            values[name] = {**defaults, **system.parameters.get(name, {})}
+            cls = getattr(host, "cls", None)
+            if isinstance(cls, type):
+                classes[name] = cls
+    finally:
+        for host in system.blocks.values():
+            host.terminate()
+    return BuiltScenario(scenario, values, classes)
+
+
 def scenario_values(path: str | Path) -> tuple[Any, dict[str, dict[str, Any]]]:
-    """The scenario and every block's parameters (file values over the defaults, SI).
+    """The scenario and every block's parameters (:func:`scenario_facts` without classes).
 
     Parameters
     ----------
@@ -103,244 +184,81 @@ def scenario_values(path: str | Path) -> tuple[Any, dict[str, dict[str, Any]]]:
     values : dict
         ``{block: {parameter: SI value}}``.
     """
-    import warnings
-
-    from cosim.scenario import load_scenario
-
-    scenario = load_scenario(path)
-    with warnings.catch_warnings():  # the campaign has shown them (feedback loops, ...)
-        warnings.simplefilter("ignore")
-        system, _ = scenario.build()
-    try:
-        values = {}
-        for name, host in system.blocks.items():
-            defaults = {v.name: v.start for v in host.variables.values()}
-            values[name] = {**defaults, **system.parameters.get(name, {})}
-    finally:
-        for host in system.blocks.values():
-            host.terminate()
-    return scenario, values
+    facts = scenario_facts(path)
+    return facts.scenario, facts.values
 
 
-def _vec(p: dict[str, Any], name: str) -> FloatArray:
-    return np.array([float(p[f"{name}[{i}]"]) for i in (1, 2, 3)])
-
-
-def _step(period: float) -> float:
-    """0.1 s if it divides the update period, else the period itself."""
-    k = period / 0.1
-    return 0.1 if k >= 1 and abs(k - round(k)) < 1e-9 else period
-
-
-def _of_source(scenario: Any, source: str) -> str | None:
-    for name, spec in scenario.blocks.items():
-        if spec.kind == "model" and spec.source == source:
-            return name
-    return None
-
-
-def linear_model(
-    path: str | Path,
-    facts: tuple[Any, dict[str, dict[str, Any]]] | None = None,
-    requirements: list[Requirement] | None = None,
-) -> LinearModel | HrgBudget | None:
-    """The linear error model of the scenario's alignment filter, if it has one.
+def run_facts(
+    path: str | Path, facts: BuiltScenario, block: str, requirements: list[Requirement]
+) -> RunFacts:
+    """What the filter block ``block`` is told of the run (:class:`RunFacts`).
 
     Parameters
     ----------
     path : str or Path
         Scenario file.
-    facts : tuple, optional
-        :func:`scenario_values` of it, if already read.
-    requirements : list of Requirement, optional
-        The requirements to budget: the seed 000 model (:class:`HrgBudget`, the linear
-        KF's first-order budget) simulates their errors and needs them; without them a
-        seed 000 scenario has no model.
+    facts : BuiltScenario
+        :func:`scenario_facts` of it.
+    block : str
+        The filter block.
+    requirements : list of Requirement
+        The requirements to budget.
 
     Returns
     -------
-    LinearModel, HrgBudget or None
-        None when no block of the scenario has a linear covariance model here.
+    RunFacts
     """
-    scenario, values = facts if facts is not None else scenario_values(path)
-    block = _of_source(scenario, "HrgTwoPositionAlignment")
-    if block is not None:
-        return None if requirements is None else HrgBudget(path, requirements, values)
-    block = _of_source(scenario, "SinsStaticAlignment")
-    if block is not None:
-        return _static_model(scenario, values, block)
-    block = _of_source(scenario, "TransferAlignment")
-    if block is not None:
-        return _transfer_model(scenario, values, block)
+    sc = facts.scenario
+    return RunFacts(
+        block=block,
+        models={n: (s.source if s.kind == "model" else "") for n, s in sc.blocks.items()},
+        values=facts.values,
+        start=float(sc.settings.start),
+        stop=float(sc.settings.stop),
+        step=float(sc.settings.step),
+        rate=int(sc.blocks[block].rate),
+        path=Path(path),
+        requirements=tuple(requirements),
+        error_signal=error_signal,
+    )
+
+
+def linear_model(
+    path: str | Path,
+    facts: BuiltScenario | None = None,
+    requirements: list[Requirement] | None = None,
+) -> LinearModel | SignalBudgetModel | None:
+    """The error model of the scenario's filter, from the first block that offers one.
+
+    A block offers one when its class implements
+    :class:`cosim.estimation.error_model.BudgetedFilter`; a
+    :class:`~cosim.estimation.error_model.LinearErrorModel` is propagated here.
+
+    Parameters
+    ----------
+    path : str or Path
+        Scenario file.
+    facts : BuiltScenario, optional
+        :func:`scenario_facts` of it, if already read.
+    requirements : list of Requirement, optional
+        The requirements to budget (a model that simulates them needs them).
+
+    Returns
+    -------
+    LinearModel, SignalBudgetModel or None
+        None when no block of the scenario offers a model.
+    """
+    facts = facts if facts is not None else scenario_facts(path)
+    for block, cls in facts.classes.items():
+        offer = getattr(cls, METHOD, None)
+        if not callable(offer):
+            continue
+        model = offer(run_facts(path, facts, block, list(requirements or [])))
+        if isinstance(model, SignalBudgetModel) and not isinstance(model, LinearErrorModel):
+            return model
+        if model is not None:
+            return LinearModel(model, propagate(model))
     return None
-
-
-def _static_model(scenario: Any, values: dict[str, dict[str, Any]], block: str) -> LinearModel:
-    from cosim.alignment.nav import euler_rate_matrix_inv
-    from cosim.alignment.static_model import FilterTuning, static_budget, table_dcm
-    from cosim.models.constants import DEG_PER_HOUR, MICRO_G
-    from cosim.models.conventions import euler_to_dcm_3
-    from cosim.models.turntable import Turntable
-
-    a = values[block]
-    tuning = FilterTuning.from_parameters(a)
-    base = _of_source(scenario, "StationaryBase")
-    base_rpy = _vec(values[base], "rpy0") if base else np.zeros(3)
-    t0 = float(a["coarse_time"]) if int(a["init_mode"]) == 0 else 0.0
-    t0 += float(scenario.settings.start)
-    table = _of_source(scenario, "Turntable")
-    angle = None
-    if table is not None:
-        tp = values[table]
-        profile = Turntable(instance_name="budget")
-        for name in ("mode", "angle0", "rate", "reversal_period", "rotation_start"):
-            setattr(profile, name, tp[name])
-        profile.accel_limit = tp["accel_limit"]
-
-        def angle(t: FloatArray, _p: Turntable = profile) -> FloatArray:
-            return _p.profile(np.asarray(t, dtype=float) + t0)[0]
-
-    kf = float(a["kf_period"])
-    t_end = round((float(scenario.settings.stop) - t0) / kf) * kf
-    budget = static_budget(
-        t_end,
-        tuning=tuning,
-        lat=float(a["lat"]),
-        h=float(a["h"]),
-        dt=kf,
-        kf_period=kf,
-        angle=angle,
-        base_rpy=base_rpy,
-        coriolis=True,
-        record_every=max(1, int(round(1.0 / kf))),
-    )
-    c_b_n = euler_to_dcm_3(base_rpy)
-    c_s_t = euler_to_dcm_3(_vec(a, "mount_rpy"))
-    gamma0 = 0.0 if angle is None else float(angle(np.zeros(1))[0])
-    c_t_n = c_b_n @ table_dcm(gamma0)
-    m_rpy = euler_rate_matrix_inv(base_rpy)
-
-    def row(variable: str, t: float) -> FloatArray | None:
-        h = np.zeros(10)
-        for name, m in (("rpy_err", m_rpy), ("phi_err", np.eye(3))):
-            for k in range(3):
-                if variable == f"{name}[{k + 1}]":
-                    h[2:5] = -m[k]  # estimate minus truth = -psi (residual)
-                    return h
-        return None
-
-    imu = _of_source(scenario, "StrapdownImu")
-
-    def regressors(draws: dict[str, FloatArray]) -> list[Regressor]:
-        out: list[Regressor] = []
-        for key, (state, label, unit, factor, axes) in {
-            f"{imu}.gyro_bias": (slice(7, 10), "gyro drift", "deg/h", DEG_PER_HOUR, "NED"),
-            f"{imu}.accel_bias": (slice(5, 7), "accelerometer bias", "ug", MICRO_G, "NE"),
-        }.items():
-            if key not in draws:
-                continue
-            x_s = draws[key]  # sensor axes, SI
-            if angle is None:  # fixed base: along north, east, down
-                x_n = x_s @ (c_t_n @ c_s_t).T
-                for k, ax in enumerate(axes):
-                    d = np.zeros(10)
-                    d[state] = c_t_n.T[: state.stop - state.start, k]
-                    out.append(Regressor(f"{label} {ax}", unit, factor, x_n[:, k], d))
-            else:  # turntable: table axes
-                x_t = x_s @ c_s_t.T
-                for k, ax in enumerate("xyz"[: state.stop - state.start]):
-                    d = np.zeros(10)
-                    d[state.start + k] = 1.0
-                    out.append(Regressor(f"{label} {ax} (table)", unit, factor, x_t[:, k], d))
-        return out
-
-    where = "a turntable" if angle is not None else "a fixed base"
-    return LinearModel(
-        block,
-        "seed 003 10-state psi-angle KF on " + where + " (cosim.alignment.static_model."
-        "static_budget: Van Loan every kf_period, Joseph updates, the block's P0, Q, R)",
-        budget,
-        t0,
-        row,
-        regressors,
-    )
-
-
-def _transfer_model(scenario: Any, values: dict[str, dict[str, Any]], block: str) -> LinearModel:
-    from cosim.alignment.nav import euler_rate_matrix_inv
-    from cosim.alignment.transfer_analysis import ship_truth, transfer_budget
-    from cosim.alignment.transfer_model import StateLayout, TransferTuning
-    from cosim.models.constants import DEG_PER_HOUR, MICRO_G
-
-    a = values[block]
-    tuning = TransferTuning(
-        p0_pos=float(a["p0_pos"]),
-        p0_vel=float(a["p0_vel"]),
-        p0_level=float(a["p0_level"]),
-        p0_heading=float(a["p0_heading"]),
-        p0_accel_bias=float(a["p0_accel_bias"]),
-        p0_gyro_drift=float(a["p0_gyro_drift"]),
-        q_accel=float(a["q_accel"]),
-        q_gyro=float(a["q_gyro"]),
-        r_vel=float(a["r_vel"]),
-        flex_tau=tuple(_vec(a, "flexure_tau")),
-        flex_sigma=tuple(_vec(a, "flexure_sigma")),
-    )
-    ship = values[_of_source(scenario, "ShipMotion") or ""]
-    lever = _of_source(scenario, "LeverArm")
-    mount = _vec(values[lever], "mount_rpy") if lever else np.zeros(3)
-    flexure = bool(int(a["flexure_states"]))
-    layout = StateLayout(flexure)
-    lat = float(ship["lat0"])
-    kw = {"lat": lat, "amp": _vec(ship, "amp"), "period": _vec(ship, "period")}
-    t0 = float(scenario.settings.start)
-    budget = transfer_budget(
-        float(scenario.settings.stop) - t0,
-        r0=_vec(a, "r0"),
-        mount_rpy=mount,
-        tuning=tuning,
-        flexure=flexure,
-        update_period=float(a["period"]),
-        dt=_step(float(a["period"])),
-        **kw,
-    )
-    m_rel = euler_rate_matrix_inv(mount)
-
-    def row(variable: str, t: float) -> FloatArray | None:
-        c_b_n = ship_truth([t - t0], **kw)["C_b_n"][0]
-        for k in range(3):
-            if variable == f"rpy_err[{k + 1}]":
-                h = np.zeros(layout.n)
-                h[layout.att] = (m_rel @ c_b_n.T)[k]
-                return h
-        return None
-
-    imu = _of_source(scenario, "StrapdownImu")
-
-    def regressors(draws: dict[str, FloatArray]) -> list[Regressor]:
-        out: list[Regressor] = []
-        for key, (state, label, unit, factor) in {
-            f"{imu}.accel_bias": (layout.nabla, "accelerometer bias", "ug", MICRO_G),
-            f"{imu}.gyro_bias": (layout.eps, "gyro drift", "deg/h", DEG_PER_HOUR),
-        }.items():
-            if key in draws:
-                for k, ax in enumerate("xyz"):
-                    d = np.zeros(layout.n)
-                    d[state.start + k] = 1.0
-                    out.append(Regressor(f"{label} {ax}", unit, factor, draws[key][:, k], d))
-        return out
-
-    return LinearModel(
-        block,
-        "seed 001 small-error model along the ship's closed-form motion "
-        f"({'with' if flexure else 'without'} flexure states; cosim.alignment."
-        "transfer_analysis.transfer_budget: an ideal linear filter on the same data, "
-        "Van Loan steps, velocity matching every period)",
-        budget,
-        t0,
-        row,
-        regressors,
-    )
 
 
 # ------------------------------------------------------------------ per requirement
@@ -405,7 +323,7 @@ def _budget_times(req: Requirement, model: LinearModel, stop: float) -> tuple[Fl
 def requirement_budget(
     campaign: Any,
     req: Requirement,
-    model: LinearModel | None,
+    model: LinearModel | SignalBudgetModel | None,
     draws: dict[str, FloatArray],
 ) -> dict[str, Any]:
     """The error budget of one requirement and the campaign's regression (report data).
@@ -416,8 +334,8 @@ def requirement_budget(
         A finished campaign.
     req : Requirement
         One of its requirements.
-    model : LinearModel, HrgBudget or None
-        The scenario's linear model (:func:`linear_model`).
+    model : LinearModel, SignalBudgetModel or None
+        The scenario's model (:func:`linear_model`).
     draws : dict
         The campaign's drawn parameters, ``"block.name"`` -> ndarray (runs, size) [SI].
 
@@ -433,7 +351,7 @@ def requirement_budget(
     stop = float(campaign.provenance["master"]["stop"])
     out: dict[str, Any] = {"id": req.id, "unit": req.unit}
     block, _, variable = req.signal.partition(".")
-    if isinstance(model, HrgBudget):
+    if isinstance(model, SignalBudgetModel) and not isinstance(model, LinearModel):
         return _direct_budget(campaign, req, model, draws, stop)
     h = None
     if model is not None and block == model.block and not req.minus and req.criterion != "settling":
@@ -569,11 +487,11 @@ def window_mean_errors(campaign: Any, req: Requirement, t0: float, t1: float) ->
 def _direct_budget(
     campaign: Any,
     req: Requirement,
-    model: HrgBudget,
+    model: SignalBudgetModel,
     draws: dict[str, FloatArray],
     stop: float,
 ) -> dict[str, Any]:
-    """A requirement's budget from a model that budgets signals itself (seed 000)."""
+    """A requirement's budget from a model that budgets signals itself."""
     out: dict[str, Any] = {"id": req.id, "unit": req.unit}
     entry = model.entry(req, stop)
     if isinstance(entry, str):
@@ -627,8 +545,8 @@ def campaign_budgets(campaign: Any) -> list[dict[str, Any]]:
         One per requirement, in order.
     """
     path = campaign.scenario["file"]
-    facts = scenario_values(path)
-    values = facts[1]
+    facts = scenario_facts(path)
+    values = facts.values
     model = linear_model(path, facts, list(campaign.requirements))
     draws, origin = campaign_draws(campaign, values)
     out = []

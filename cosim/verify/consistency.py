@@ -252,7 +252,7 @@ def _prepare(
     if t.size == 0:
         return (
             "no sample: the output stayed 0 in the judged span (the filter never updated, "
-            "or publishes no NIS, as the HRG UPF)"
+            "or publishes no NIS, as a particle filter may)"
         )
     windows = max(1, min(DEFAULT_WINDOWS, t.size // MIN_SAMPLES))
     edges = window_edges(float(t[0]), float(t[-1]), window, windows)

@@ -26,12 +26,13 @@ import base64
 import html
 import io
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
+from cosim.estimation.error_model import Regressor
 from cosim.verify.seeds import Stratified, stratified_draws
 
 FloatArray = NDArray[np.float64]
@@ -48,32 +49,6 @@ SE_FORMULA = (
     "ordinary least squares with an intercept; se(b_j) = sqrt(s^2 [(X^T X)^-1]_jj), "
     "s^2 = sum of squared residuals / (n - p - 1)"
 )
-
-
-@dataclass(frozen=True)
-class Regressor:
-    """One regressor: a drawn source's value in every run.
-
-    Attributes
-    ----------
-    name : str
-        What it is (``"gyro drift E"``).
-    unit : str
-        Display unit of its values (``"deg/h"``).
-    factor : float
-        SI value of one display unit (``x_display = x_SI / factor``).
-    values : ndarray, shape (runs,)
-        Its value in each run [SI].
-    direction : ndarray, shape (n,) or None
-        ``d e_0 / d x``: how one SI unit of it enters the filter's initial estimation
-        error (None when no linear model knows it).
-    """
-
-    name: str
-    unit: str
-    factor: float
-    values: FloatArray
-    direction: FloatArray | None = field(default=None, repr=False)
 
 
 @dataclass(frozen=True)

@@ -6,8 +6,8 @@ Seeds of run ``i`` of a campaign with seed ``S`` (README, "Verification and camp
     seed of names[j] in run i = int(state[j] >> 1)          # 0 .. 2**31 - 1, an FMI Integer
 
 ``names`` lists every block with an Integer ``seed`` parameter, in file order; a
-reproduction may append streams of its own after them (seed 000 draws its truth from a
-fourth word named ``truth``). The words of ``generate_state`` do not depend on how many
+reproduction may append streams of its own after them (e.g. a fourth word named ``truth``
+for a truth it draws itself). The words of ``generate_state`` do not depend on how many
 are asked for, so appending a name never changes the seeds before it, and
 ``SeedSequence(S, spawn_key=(i,))`` is the ``i``-th spawned child for any ``runs > i``,
 so a run's seeds do not depend on the number of runs either.

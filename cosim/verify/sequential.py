@@ -68,7 +68,7 @@ divided by n (Stein 1987); it is at most that of independent runs when g is mono
 each draw (McKay, Beckman and Conover 1979), and never more than sigma^2 / (n - 1) for
 any g (Owen, *Monte Carlo theory, methods and examples*, Proposition 10.4): a hypercube
 is never worse than independent runs with one run fewer. Stratification is used where a
-metric grows with a drawn turn-on error (seed 001's bias tilts the level), i.e. where g
+metric grows with a drawn turn-on error (a level error follows a drawn bias), i.e. where g
 has a large additive part: there the statistic scatters less than the bounds assume, so
 the bounds are conservative (they cover more often than stated, and are wider than they
 need be), to the extent that a smaller variance means smaller tails (asymptotically it

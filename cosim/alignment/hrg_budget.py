@@ -1,4 +1,4 @@
-"""Error budget of seed 000's two-position HRG alignment, with the linear KF's model.
+"""The HRG two-position filter's error budget: first order, with the linear KF's model.
 
 The filter of the HRG two-position scenario (:mod:`cosim.alignment.hrg_two_position`) is
 a UPF, an EKF or the KF on the paper's linear model (``method`` 2). Only the KF is
@@ -26,6 +26,9 @@ therefore a **first-order** one, taken at the scenario's own truth:
 The parts' variances add to the total. The first-order assumption is checked in every
 entry: ``linearity`` is the error of the run with all sources minus the sum of the
 residual and the contributions, relative to the total 1-sigma.
+
+This is the filter's :class:`cosim.estimation.error_model.SignalBudgetModel`: the block's
+``budget_model`` returns :class:`HrgBudget` (the verifier asks it per requirement).
 """
 
 from __future__ import annotations
@@ -37,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from cosim.verify.requirements import Requirement, error_signal
+from cosim.estimation.error_model import RunFacts
 
 #: Signal of the filter block -> index into :data:`cosim.alignment.hrg_filters.KF_OUTPUTS`
 #: and its SI unit.
@@ -56,26 +59,15 @@ SIGNALS = {
 METHOD_NAMES = {0: "the EKF", 1: "the UPF", 2: "the KF"}
 
 
-def _of_source(scenario: Any, source: str) -> str | None:
-    for name, spec in scenario.blocks.items():
-        if spec.kind == "model" and spec.source == source:
-            return name
-    return None
-
-
 class HrgBudget:
     """The first-order budget of every requirement of a seed 000 scenario (module docstring).
 
     Parameters
     ----------
-    path : str or Path
-        The scenario file (HrgPlatform, HrgPlatformGyro, PlatformAccelerometer and the
-        HrgTwoPositionAlignment filter block).
-    requirements : list of Requirement
-        The requirements to budget (resolved against the scenario).
-    values : dict
-        ``{block: {parameter: SI value}}`` with the defaults
-        (:func:`cosim.verify.budget.scenario_values`).
+    run : RunFacts
+        The run: its scenario file (an HrgPlatform, HrgPlatformGyro and
+        PlatformAccelerometer beside this filter block), the parameters with their
+        defaults, the requirements to budget and the verifier's ``error_signal``.
 
     Attributes
     ----------
@@ -93,23 +85,23 @@ class HrgBudget:
         Its filter windows (:func:`cosim.alignment.hrg_filters.kf_windows`).
     """
 
-    def __init__(
-        self,
-        path: str | Path,
-        requirements: list[Requirement],
-        values: dict[str, dict[str, Any]],
-    ) -> None:
+    def __init__(self, run: RunFacts) -> None:
         from cosim.scenario import load_scenario
 
-        self.path = Path(path)
-        scenario = load_scenario(path)
+        if run.path is None or run.error_signal is None:
+            raise ValueError(
+                "the HRG budget simulates the scenario: give its file and error_signal"
+            )
+        self.path = Path(run.path)
+        scenario = load_scenario(self.path)
         self.scenario = scenario
-        self.values = values
-        self.block = _of_source(scenario, "HrgTwoPositionAlignment") or ""
-        self.platform = _of_source(scenario, "HrgPlatform") or ""
-        self.gyro = _of_source(scenario, "HrgPlatformGyro") or ""
-        self.accel = _of_source(scenario, "PlatformAccelerometer") or ""
-        method = int(values[self.block]["method"])
+        self.values = run.values
+        self.error_signal = run.error_signal
+        self.block = run.block
+        self.platform = run.find("HrgPlatform") or ""
+        self.gyro = run.find("HrgPlatformGyro") or ""
+        self.accel = run.find("PlatformAccelerometer") or ""
+        method = int(run.values[self.block]["method"])
         self.which = (
             "the linear KF's model"
             if method == 2
@@ -122,7 +114,7 @@ class HrgBudget:
             "through eq. (16)-(21)"
             + ("" if method == 2 else f"; the campaign's filter is {METHOD_NAMES.get(method)}")
         )
-        self.requirements = list(requirements)
+        self.requirements = list(run.requirements)
         self.sources: list[tuple[str, str, tuple[str, ...]]] = [
             (
                 "initial level misalignment (theta_E0, theta_N0)",
@@ -166,8 +158,8 @@ class HrgBudget:
             finally:
                 master.terminate()
 
-    def _error_at(self, result: Any, req: Requirement, t: float) -> float:
-        tt, e, _ = error_signal(req, result)
+    def _error_at(self, result: Any, req: Any, t: float) -> float:
+        tt, e, *_ = self.error_signal(req, result)
         return float(np.interp(t, tt, e))
 
     def _compute(self) -> None:
@@ -240,13 +232,13 @@ class HrgBudget:
         return kf_noise_budget(aligner, self.windows, t, noise)
 
     # ------------------------------------------------------------------ per requirement
-    def entry(self, req: Requirement, stop: float) -> dict[str, Any] | str:
+    def entry(self, req: Any, stop: float) -> dict[str, Any] | str:
         """One requirement's budget, or the reason there is none.
 
         Parameters
         ----------
         req : Requirement
-            A requirement of the scenario.
+            A requirement of the scenario (:class:`cosim.verify.requirements.Requirement`).
         stop : float
             The run's stop time [s] (the default ``at``).
 
