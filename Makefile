@@ -4,7 +4,7 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 FMUDIR := fmus/build
-MODEL_SOURCES := $(wildcard models/*.py) $(wildcard models/native/*.py) $(wildcard models/native/*.[ch]) \
+MODEL_SOURCES := $(wildcard models/*.py) $(wildcard models/blocks/*.py) $(wildcard models/native/*.py) $(wildcard models/native/*.[ch]) \
 	cosim/interop/packaging.py
 
 .PHONY: all setup native fmus demo test test-slow bench bench-slow lint format clean

@@ -189,16 +189,14 @@ def test_an_fmu_without_the_kernels_gives_the_compiled_numbers(
 
 
 def test_without_a_compiler_the_models_run_numpy(tmp_path: Path) -> None:
-    """A copy of models/ with no library, in a process that finds no C compiler."""
-    shutil.copytree(
-        Path(models.__file__).parent,
-        tmp_path / "models",
-        ignore=shutil.ignore_patterns("build", "__pycache__"),
-    )
+    """A copy of the package with no library, in a process that finds no C compiler."""
+    skip = shutil.ignore_patterns("build", "__pycache__")
+    shutil.copytree(Path(cosim.__file__).parent, tmp_path / "cosim", ignore=skip)
+    shutil.copytree(Path(models.__file__).parent, tmp_path / "cosim" / "models", ignore=skip)
     script = (
         "import sys; sys.path.insert(0, sys.argv[1])\n"
-        "import models, models.native as n\n"
-        "from models.lever_arm import LeverArm\n"
+        "import cosim.models as models, cosim.models.native as n\n"
+        "from cosim.models.blocks.lever_arm import LeverArm\n"
         "b = LeverArm(); b.setup_experiment(0.0); b.exit_initialization_mode()\n"
         "b.step(0.0, 0.01)\n"
         "print(models.__file__); print(b.compiled); print(n.status())\n"
@@ -215,7 +213,7 @@ def test_without_a_compiler_the_models_run_numpy(tmp_path: Path) -> None:
     )
     assert proc.returncode == 0, proc.stderr
     where, compiled, status = proc.stdout.strip().splitlines()[-3:]
-    assert Path(where).parent == tmp_path / "models"
+    assert Path(where).parent == tmp_path / "cosim" / "models"
     assert compiled == "False"
     assert status.startswith("numpy (compiled kernels unavailable: no C compiler"), status
-    assert not (tmp_path / "models" / "native" / "build").exists()
+    assert not list(tmp_path.rglob("kernels-*.so"))

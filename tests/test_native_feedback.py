@@ -42,9 +42,9 @@ from cosim.alignment.transfer_model import (
 )
 from cosim.estimation.checks import CovarianceError
 from cosim.models import native
+from cosim.models.blocks.lever_arm import r0_matrix
 from cosim.models.constants import DEG
 from cosim.models.conventions import euler_to_dcm, wrap_angle
-from cosim.models.lever_arm import r0_matrix
 
 LAT = 30.0 * DEG
 R0 = np.array([10.0, 10.0, 5.0])

@@ -68,7 +68,7 @@ sums (:class:`~cosim.alignment.transfer_model.PeriodSums`) restart.
 Outputs ("alignment accuracy")
 ------------------------------
 What is compared: the slave's estimated attitude ``C^_s_n`` against its true attitude
-``C_s_n`` (from :class:`models.lever_arm.LeverArm`'s ``rpy_s``), both referred to the
+``C_s_n`` (from :class:`models.blocks.lever_arm.LeverArm`'s ``rpy_s``), both referred to the
 master's true attitude, i.e. the **relative attitude** (misalignment) of the slave in
 master axes, ``C_s_b = C_b_n^T C_s_n``, which is the mounting plus the current flexure
 (seed 001's "true misalignment" of Table 1: 1.055706 deg, 1.015315 deg, 29.98939 deg).

@@ -178,9 +178,9 @@ def linear_model(
 def _static_model(scenario: Any, values: dict[str, dict[str, Any]], block: str) -> LinearModel:
     from cosim.alignment.nav import euler_rate_matrix_inv
     from cosim.alignment.static_model import FilterTuning, static_budget, table_dcm
+    from cosim.models.blocks.turntable import Turntable
     from cosim.models.constants import DEG_PER_HOUR, MICRO_G
     from cosim.models.conventions import euler_to_dcm_3
-    from cosim.models.turntable import Turntable
 
     a = values[block]
     tuning = FilterTuning.from_parameters(a)

@@ -1,7 +1,8 @@
 """Compiled step kernels of the models: a small C library built with gcc, loaded with ctypes.
 
-The hot loops of :class:`models.lever_arm.LeverArm`, :class:`models.deck_flexure.DeckFlexure`
-and :class:`models.strapdown_imu.StrapdownImu` have a C twin in ``kernels.c`` (the same
+The hot loops of :class:`models.blocks.lever_arm.LeverArm`,
+:class:`models.blocks.deck_flexure.DeckFlexure`
+and :class:`models.blocks.strapdown_imu.StrapdownImu` have a C twin in ``kernels.c`` (the same
 formulas in the same order, one call per step, no warm-up). The numpy code stays, as the
 fallback and the readable statement of each model; both give the same outputs to rounding
 (``tests/test_native.py`` checks 1e-12, in-process and inside an FMU).

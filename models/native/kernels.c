@@ -3,7 +3,7 @@
  * Each function mirrors a numpy step of a model block operation by operation (same
  * formulas, same order where it matters), so that the outputs equal the numpy path's to
  * rounding (~1e-16 relative). Arrays are float64, C order; the layouts are those of the
- * Python callers (models/lever_arm.py, models/deck_flexure.py, models/strapdown_imu.py),
+ * Python callers (models/blocks/lever_arm.py, models/blocks/deck_flexure.py, models/blocks/strapdown_imu.py),
  * which keep the numpy code as the fallback. Built by models/native/__init__.py with
  * gcc -O2 (no -ffast-math: IEEE arithmetic, no reassociation, no contraction).
  */
@@ -388,7 +388,7 @@ void strapdown_imu_step(const double *d_true, const double *err, const double *b
 
 /* ------------------------------------------------------------------ ship motion
  * The moored ship (no linear motion) at the instants tt, and the rows of ShipMotion's
- * look-ahead (models/ship_motion.py, models/earth.py euler_motion_truth, fixed position).
+ * look-ahead (models/blocks/ship_motion.py, models/earth.py euler_motion_truth, fixed position).
  * par: w (0:3), amp (3:6), phase (6:9), rpy_mean (9:12), OMEGA_IE cos lat0 (12),
  *      OMEGA_IE sin lat0 (13), gravity (14)
  * tt: (size m) instants, step k's nodes at k m .. k m + m - 1; wts: (m) Simpson weights;

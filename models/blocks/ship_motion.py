@@ -42,11 +42,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import native
-from .block import STEP_RTOL, Block, parameter, same_step
-from .constants import DEG, OMEGA_IE
-from .earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth, gravity
-from .step_paths import simpson_nodes, substeps
+from cosim.models import native
+from cosim.models.block import STEP_RTOL, Block, parameter, same_step
+from cosim.models.constants import DEG, OMEGA_IE
+from cosim.models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth, gravity
+from cosim.models.step_paths import simpson_nodes, substeps
 
 
 class ShipMotion(Block):

@@ -23,7 +23,7 @@ in body axes; uniform gravity over the arm, as in eq. 2)::
 With ``theta'' = -2 beta theta' - beta^2 theta + eta`` the flexure terms are
 exactly eq. (11): ``(...) R_0 theta - R_2 theta + (2 [omega x] R_0 - R_1) theta' + R_0 eta``.
 ``theta''`` at the step end is the DeckFlexure's ``theta_ddot`` (white noise as
-its step mean, see :mod:`models.deck_flexure`); over a step the integral of
+its step mean, see :mod:`models.blocks.deck_flexure`); over a step the integral of
 ``R_0 theta''`` is exactly ``R_0 dtheta_dot_flex``.
 
 Increments (plain integrals over ``[t, t + h]``, no coning/sculling terms)::
@@ -68,18 +68,18 @@ import math
 
 import numpy as np
 
-from . import native
-from .block import Block, input_, output, parameter
-from .constants import DEG, OMEGA_IE
-from .conventions import (
+from cosim.models import native
+from cosim.models.block import Block, input_, output, parameter
+from cosim.models.constants import DEG, OMEGA_IE
+from cosim.models.conventions import (
     cross,
     dcm_to_euler_3,
     euler_to_dcm,
     euler_to_dcm_3,
     rotvec_to_dcm_and_jacobian,
 )
-from .earth import motion_inputs
-from .step_paths import (
+from cosim.models.earth import motion_inputs
+from cosim.models.step_paths import (
     StepPath,
     hermite_basis,
     path_basis,

@@ -69,9 +69,9 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from . import native
-from .block import Block, input_, output, parameter, same_step
-from .constants import ARCSEC, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MICRO_G, PPM
+from cosim.models import native
+from cosim.models.block import Block, input_, output, parameter, same_step
+from cosim.models.constants import ARCSEC, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MICRO_G, PPM
 
 UNSET = -1.0  #: start value of the statistical parameters: "take it from the grade"
 
