@@ -526,3 +526,13 @@ def test_scenario_build_is_where_blocks_are_instantiated() -> None:
         if _calls(path, "InProcessHost") or _calls(path, "FmuHost")
     }
     assert places - HOSTS_ALSO_MADE_IN == {"cosim/scenario.py"}, sorted(places)
+
+
+def test_one_c_build() -> None:
+    """The kernels and the C FMUs are compiled by one function with one flag set."""
+    places = [
+        path.relative_to(ROOT).as_posix()
+        for path in python_files(*LIBRARY)
+        if '"-shared"' in path.read_text(encoding="utf-8")
+    ]
+    assert places == ["models/native/ccompile.py"], places

@@ -58,6 +58,44 @@ def test_the_kernels_are_built_and_used() -> None:
         assert block.compiled, name
 
 
+def test_the_table_is_exactly_what_the_library_exports() -> None:
+    """One declaration table: every kernel of ``KERNELS`` is exported by the library, and
+    nothing else is (the sources mark kernels with ``KERNEL``, the build hides the rest)."""
+    nm = shutil.which("nm")
+    if nm is None:
+        pytest.skip("nm (binutils) is not installed")
+    proc = subprocess.run(
+        [nm, "-D", "--defined-only", str(native.library_path())],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    exported = {line.split()[-1] for line in proc.stdout.splitlines() if " T " in line}
+    assert exported == {k.name for k in native.KERNELS}
+    assert len(native.KERNELS) == len({k.name for k in native.KERNELS})
+
+
+def test_each_kernel_source_sits_in_the_package_it_speeds_up() -> None:
+    """The truth models' C beside the blocks, the filters' C beside the alignment code."""
+    c_files, h_files = native.sources()
+    wanted = {(k.package, k.source) for k in native.KERNELS}
+    assert len(c_files) == len(wanted)
+    root = Path(cosim.__file__).parent
+    for k in native.KERNELS:
+        folder = Path(models.__file__).parent if k.package.startswith("cosim.models") else root
+        sub = (
+            k.package.split(".")[2:]
+            if k.package.startswith("cosim.models")
+            else k.package.split(".")[1:]
+        )
+        assert folder.joinpath(*sub, k.source) in c_files, k
+        text = folder.joinpath(*sub, k.source).read_text()
+        assert f" {k.name}(" in text and "KERNEL" in text, k
+    assert {h.name for h in h_files} == {"conventions.h", "kernel.h"}
+    with pytest.raises(KeyError, match="no kernel 'nope'"):
+        native.kernel("nope")
+
+
 def test_the_switch_turns_them_off(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(native.ENV, "0")
     assert native.library() is None

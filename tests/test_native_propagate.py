@@ -1,4 +1,4 @@
-"""The compiled transfer-alignment error model (``models/native/transfer_model.c``).
+"""The compiled transfer-alignment error model (``cosim/alignment/transfer_model.c``).
 
 :func:`cosim.alignment.transfer_native.make_propagate` gives the UKF's process model: the C
 twin of :func:`cosim.alignment.transfer_model.propagate`, or the numpy function itself with

@@ -1,4 +1,4 @@
-"""The fine UKF's compiled period (``models/native/transfer_ukf.c``) against the numpy UKF.
+"""The fine UKF's compiled period (``cosim/alignment/transfer_ukf.c``) against the numpy UKF.
 
 :class:`cosim.alignment.transfer_ukf_native.CompiledFinePeriod` must leave the UKF as its
 ``predict`` and ``update`` leave it, with the same NIS. The arithmetic is the same; the

@@ -464,7 +464,7 @@ def propagate(x: ArrayLike, sums: PeriodSums, layout: StateLayout) -> FloatArray
     """Nonlinear error model over one filter period (the UKF's ``fx``), batched.
 
     The readable statement of the model and the fallback of its C twin
-    ``transfer_propagate`` (``models/native/transfer_model.c``, the same formulas in the
+    ``transfer_propagate`` (``cosim/alignment/transfer_model.c``, the same formulas in the
     same order), which :func:`cosim.alignment.transfer_native.make_propagate` picks.
 
     Parameters

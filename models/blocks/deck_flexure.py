@@ -32,7 +32,7 @@ force at the step end, and its integral over the step is exactly
 ``R_0 (theta'(t+h) - theta'(t)) = R_0 dtheta_dot_flex`` (see :mod:`models.blocks.lever_arm`).
 
 Compiled step: with :func:`models.native.library`, the per-step update below is one call
-of ``deck_flexure_step`` (``models/native/kernels.c``, the same arithmetic; the normals are
+of ``deck_flexure_step`` (``models/blocks/deck_flexure.c``, the same arithmetic; the normals are
 still drawn by numpy, :data:`AHEAD_STEPS` steps at a time).
 
 Outputs at the step end: ``theta`` [rad], ``theta_dot`` [rad/s], ``theta_ddot``

@@ -57,7 +57,7 @@ The step blocks are drawn :data:`AHEAD_STEPS` at a time (the same numbers in the
 order) and the input-free terms computed for those steps at once, with the same
 arithmetic as step by step. With :func:`models.native.library`, the per-step part (errors
 applied to the inputs, quantisation, outputs) is one call of ``strapdown_imu_step``
-(``models/native/kernels.c``, the same arithmetic).
+(``models/blocks/strapdown_imu.c``, the same arithmetic).
 """
 
 from __future__ import annotations
