@@ -1,4 +1,4 @@
-"""Transfer alignment (seed 001 and issue 26): slave strapdown, 19-state nonlinear model, UKF.
+"""The transfer-alignment filter block: a slave strapdown matched to the master by a UKF.
 
 The block :class:`TransferAlignment` aligns a slave strapdown IMU on a ship's deck to
 the ship's master INS by **velocity matching** (``matching = 0``, the default and seed

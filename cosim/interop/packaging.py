@@ -1,4 +1,4 @@
-"""Pack the block classes of ``models/`` into FMI 2.0 co-simulation FMUs with pythonfmu.
+"""Pack the model blocks (``models/blocks/``) into FMI 2.0 co-simulation FMUs with pythonfmu.
 
 Each FMU holds a short entry script that imports its class, plus in its resources a
 ``cosim`` stub package holding a copy of ``cosim.models`` (the repository's ``models/``)

@@ -1,10 +1,12 @@
-"""Where the runs of a campaign go: this process, a local pool, or a Dask cluster.
+"""A campaign's runs as a worker makes them: the jobs, one run, runs in this process.
 
 A worker builds the scenario's blocks (loads its FMUs) once, the first time it sees a
 :class:`WorkerSpec`, and resets them between runs; each :class:`Job` sets its
 parameters on a copy of the built system's own before the run. A run's numbers depend
 only on its job (seeds, parameters, stratified draws), never on the worker that ran it
 nor on the runs it ran before.
+
+Where the jobs go is :func:`cosim.verify.dispatch.run_jobs`:
 
 - ``workers == 1``: in this process, one after the other; in one worker process when the
   scenario holds an FMU not built by ins-cosim (:attr:`WorkerSpec.isolate`), so that its
@@ -13,8 +15,8 @@ nor on the runs it ran before.
   running one job at a time sent to it through its own pipe, so the parent always knows
   which run each process is running. A pool given to
   :func:`cosim.verify.dispatch.run_jobs` keeps its processes, and their built blocks,
-  from one call to the next (the looks of
-  ``verify --until-decided``); without one, a pool lives for one call.
+  from one call to the next (the looks of ``verify --until-decided``); without one, a
+  pool lives for one call.
 - ``cluster = "tcp://host:8786"``: a Dask distributed cluster; each worker thread builds
   the blocks once on its first run. The workers must see the scenario and FMU files at
   the same paths (a shared file system).
