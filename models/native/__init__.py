@@ -262,7 +262,7 @@ def build(force: bool = False) -> Path:
             compile_shared(c_files, target, include_dirs=includes)
         except CompileError as exc:
             _state["build_log"] = exc.log
-            error = f"compiling the kernels failed: {exc} (python -m cosim.models.native)"
+            error = f"{exc}; the whole log: python -m cosim.models.native"
     if error:
         _state["build_error"] = error
         raise RuntimeError(error)

@@ -140,6 +140,8 @@ def compile_shared(
         proc = subprocess.run(command, capture_output=True, text=True, check=False)
         if proc.returncode != 0:
             names = ", ".join(Path(s).name for s in sources)
+            if len(sources) > 3:
+                names = f"{len(sources)} C sources into {target.name}"
             raise CompileError(
                 f"compiling {names} failed ({cc}, exit {proc.returncode}): "
                 f"{first_error(proc.stderr)}",
