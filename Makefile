@@ -4,7 +4,8 @@ VENV   := .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.installed
 FMUDIR := fmus/build
-MODEL_SOURCES := $(wildcard models/*.py) $(wildcard models/native/*.py) $(wildcard models/native/*.[ch]) \
+MODEL_SOURCES := $(wildcard models/*.py) $(wildcard models/blocks/*.py) $(wildcard models/native/*.py) \
+	$(wildcard models/*.h) $(wildcard models/blocks/*.c) $(wildcard models/native/*.h) $(wildcard cosim/alignment/*.c) \
 	cosim/interop/packaging.py
 
 .PHONY: all setup native fmus demo test test-slow bench bench-slow lint format clean
@@ -21,7 +22,7 @@ $(STAMP): pyproject.toml
 
 setup: $(STAMP) native
 
-# The models' compiled step kernels (models/native/build/kernels-<hash>.so, gcc); a no-op
+# The compiled kernels of models/native's table (models/native/build/kernels-<hash>.so); a no-op
 # when the library of the current source exists. Without gcc the models run numpy.
 native: $(STAMP)
 	$(PY) -m cosim.models.native

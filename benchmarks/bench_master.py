@@ -35,10 +35,10 @@ from benchmarks.timing import load_note
 from cosim.blocks import InProcessHost
 from cosim.master import Connection, Master, MasterSettings, System
 from cosim.models.block import Block
-from cosim.models.deck_flexure import DeckFlexure
-from cosim.models.lever_arm import LeverArm
-from cosim.models.ship_motion import ShipMotion
-from cosim.models.strapdown_imu import StrapdownImu
+from cosim.models.blocks.deck_flexure import DeckFlexure
+from cosim.models.blocks.lever_arm import LeverArm
+from cosim.models.blocks.ship_motion import ShipMotion
+from cosim.models.blocks.strapdown_imu import StrapdownImu
 
 #: Macro steps per timed run (10 ms steps: 60 s simulated).
 STEPS = 6000

@@ -40,12 +40,12 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
+from cosim.models.blocks.deck_flexure import discretize_flexure, noise_factor
+from cosim.models.blocks.lever_arm import r0_matrix, slave_kinematics
+from cosim.models.blocks.strapdown_imu import bias_step_coefficients, resolve_parameters
 from cosim.models.conventions import cross, dcm_to_euler, euler_to_dcm, wrap_angle
-from cosim.models.deck_flexure import discretize_flexure, noise_factor
 from cosim.models.earth import euler_motion_truth, omega_ie_n
-from cosim.models.lever_arm import r0_matrix, slave_kinematics
 from cosim.models.step_paths import simpson_nodes, substeps
-from cosim.models.strapdown_imu import bias_step_coefficients, resolve_parameters
 
 HERE = Path(__file__).resolve().parent
 #: The chain's scenario file.
@@ -548,7 +548,7 @@ def simulate(
 def master_ins(p: dict[str, Any], ship: dict[str, np.ndarray], h: float) -> dict[str, np.ndarray]:
     """MasterIns outputs at t0 and every step end from the ship's true outputs.
 
-    The same draws in the same order as :class:`models.master_ins.MasterIns` (6 normals
+    The same draws in the same order as :class:`models.blocks.master_ins.MasterIns` (6 normals
     at initialisation, 6 per step, drawn here in one call); zero latency only (the
     delay line is a sequential buffer).
 

@@ -1,5 +1,7 @@
-"""Command line: ``ins-cosim run | check | fmus | verify | plan | characterize | place
-| check-fmu | export-ssp | reproduce``.
+"""The command line: ``ins-cosim`` and its subcommands, and how it reports a user's mistake.
+
+Subcommands: ``run | check | fmus | verify | plan | characterize | place | check-fmu |
+export-ssp | reproduce``.
 
 A user's mistake (bad scenario, missing FMU, failing block, bad option) prints one
 message naming the file, key, block or variable, and exits non-zero without a traceback:

@@ -1,5 +1,4 @@
-"""Runs that survive a block killing its process: ``ins-cosim run --isolate`` and campaign
-workers.
+"""Runs that survive a block killing its process (``run --isolate``, campaign workers).
 
 An FMU is native code in the simulating process: an ``abort()``, a segmentation fault or
 an ``exit()`` in it ends that process, with no Python exception to catch. Two things

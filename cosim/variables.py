@@ -1,5 +1,7 @@
-"""FMI variables as the master sees them: the scalar :class:`Variable` record, scalar
-names, rename maps, and reading variables and units from an FMU's model description.
+"""FMI variables as the master sees them, and as an FMU's model description declares them.
+
+The scalar :class:`Variable` record, scalar names, rename maps, and reading variables
+and units from an FMU's model description.
 
 Both hosts (:mod:`cosim.blocks`) describe their blocks with these records; check-fmu and the
 role specs (:mod:`cosim.interop`) read FMUs with the same functions.

@@ -1,5 +1,7 @@
-"""How a scenario's blocks are wired: connections resolved to scalar links with unit factors,
-inputs checked for a value, and the outputs to record.
+"""How a scenario's blocks are wired: connections, unconnected inputs, recorded outputs.
+
+Connections are resolved to scalar links with unit factors, inputs checked for a value,
+and the outputs to record chosen.
 
 Called by :meth:`cosim.scenario.Scenario.build` once the blocks are instantiated; every
 problem is a :class:`~cosim.errors.ScenarioError` located in the scenario file.

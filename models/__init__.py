@@ -1,7 +1,13 @@
-"""Truth and sensor models: one module per block class (see ``models/block.py``).
+"""The model library and, in :mod:`cosim.models.blocks`, the model blocks built on it.
 
-:func:`registry` finds every concrete :class:`~models.block.Block` subclass
-defined in a module of this package; ``make fmus`` packs each into an FMU.
+This folder is the library every model shares: the block protocol (``block``), the
+unit factors and physical constants (``constants``), the attitude conventions
+(``conventions``, and ``conventions.h`` for the C kernels), the earth model (``earth``),
+frame changes (``frames``), the step paths of exact increments (``step_paths``) and the
+compiled kernels' loader (``native``). The subpackage ``blocks/`` holds the model blocks,
+one module per block class; :func:`truth_models` finds every concrete
+:class:`~cosim.models.block.Block` subclass defined there, and ``make fmus`` packs each
+into an FMU.
 """
 
 from __future__ import annotations
@@ -10,9 +16,8 @@ import importlib
 import inspect
 import pkgutil
 
+from . import blocks
 from .block import Block
-
-_NOT_BLOCKS = {"block", "constants", "conventions", "earth", "frames", "step_paths"}
 
 
 def find_blocks(package: str, path: list[str]) -> dict[str, type[Block]]:
@@ -32,7 +37,7 @@ def find_blocks(package: str, path: list[str]) -> dict[str, type[Block]]:
     """
     found: dict[str, type[Block]] = {}
     for info in pkgutil.iter_modules(path):
-        if info.name.startswith("_") or info.name in _NOT_BLOCKS:
+        if info.name.startswith("_") or info.ispkg:
             continue
         module = importlib.import_module(f"{package}.{info.name}")
         for name, obj in inspect.getmembers(module, inspect.isclass):
@@ -42,7 +47,7 @@ def find_blocks(package: str, path: list[str]) -> dict[str, type[Block]]:
 
 
 def truth_models() -> dict[str, type[Block]]:
-    """All truth-model classes in ``models/``, by class name.
+    """All model blocks of :mod:`cosim.models.blocks`, by class name.
 
     :mod:`cosim.registry` adds the blocks of installed packages (entry points) to these.
 
@@ -51,4 +56,4 @@ def truth_models() -> dict[str, type[Block]]:
     dict
         ``{class name: class}``, sorted by name.
     """
-    return find_blocks(__name__, __path__)
+    return find_blocks(blocks.__name__, list(blocks.__path__))

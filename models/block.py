@@ -1,4 +1,4 @@
-"""FMI-shaped base class shared by every model in ``models/``.
+"""The FMI-shaped base class of every model block (``models/blocks/``).
 
 A model says only what it computes: it lists its variables (:func:`parameter`,
 :func:`input_`, :func:`output`) and implements :meth:`Block.initialize` and

@@ -1,5 +1,4 @@
-"""Physical constants and unit factors: the one place every model, filter and reproduction
-takes them from.
+"""Physical constants and unit factors, the one place every model and filter takes them from.
 
 Unit factors convert a value in the named unit to SI: ``2 * ARCMIN`` is 2 arcmin in rad.
 ``G0`` is standard gravity (the papers' "g" in sensor figures, also the ``g``, ``mg`` and

@@ -689,7 +689,7 @@ def rotvec_to_dcm_and_jacobian(phi: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
     """:func:`rotvec_to_dcm` and :func:`so3_right_jacobian` of the same vectors, together.
 
     Elementwise arithmetic in a fixed order (``[phi x]^2`` written out, no matrix
-    products), which the compiled lever arm (``models/native/kernels.c``) repeats.
+    products), which the compiled lever arm (``models/blocks/lever_arm.c``) repeats.
 
     Parameters
     ----------

@@ -31,8 +31,8 @@ from allantools import noise
 from click.testing import CliRunner
 
 from cosim.cli import main
+from cosim.models.blocks.strapdown_imu import PRESETS
 from cosim.models.constants import DEG, G0
-from cosim.models.strapdown_imu import PRESETS
 from cosim.sensors.characterize import (
     BAND,
     FLICKER,

@@ -27,11 +27,11 @@ from cosim.alignment.coarse_inertial import (
 )
 from cosim.alignment.nav import AlignmentConfigError, dcm_to_rotvec_3, earth_rate
 from cosim.alignment.sins_static import SinsStaticAlignment
+from cosim.models.blocks.ship_motion import ShipMotion
+from cosim.models.blocks.stationary_base import StationaryBase
 from cosim.models.constants import ARCMIN, DEG, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MICRO_G, OMEGA_IE
 from cosim.models.conventions import euler_to_dcm_3
 from cosim.models.earth import gravity
-from cosim.models.ship_motion import ShipMotion
-from cosim.models.stationary_base import StationaryBase
 from cosim.reproduce import seed003
 
 ROOT = Path(__file__).resolve().parent.parent

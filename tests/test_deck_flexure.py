@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 from scipy import signal
 
+from cosim.models.blocks.deck_flexure import DeckFlexure, discretize_flexure
 from cosim.models.constants import ARCMIN
-from cosim.models.deck_flexure import DeckFlexure, discretize_flexure
 
 
 def run(tau: tuple, sigma: tuple, h: float, steps: int, seed: int = 1) -> dict[str, np.ndarray]:

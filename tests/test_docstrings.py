@@ -58,6 +58,7 @@ import pkgutil
 import re
 import sys
 from collections.abc import Callable, Iterator
+from pathlib import Path
 
 import pytest
 
@@ -302,3 +303,51 @@ def test_checker_walks_every_module() -> None:
         modules
     )
     assert not any(part.startswith("_") for m in modules for part in m.split("."))
+
+
+def summary_line_problem(source: str) -> str:
+    """What is wrong with a module's summary line ("" when nothing is).
+
+    The first line of a module's docstring says its one concern: a sentence of its own
+    (ending with a full stop), followed by a blank line or the end of the docstring.
+
+    Parameters
+    ----------
+    source : str
+        The module's source.
+
+    Returns
+    -------
+    str
+        ``"no docstring"``, ``"the first line is not a sentence of its own"``, or "".
+    """
+    import ast
+
+    doc = ast.get_docstring(ast.parse(source))
+    if not doc or not doc.strip():
+        return "no docstring"
+    lines = doc.strip().splitlines()
+    if not lines[0].rstrip().endswith(".") or (len(lines) > 1 and lines[1].strip()):
+        return "the first line is not a sentence of its own"
+    return ""
+
+
+def test_the_summary_line_checker() -> None:
+    assert summary_line_problem('"""One concern."""\n') == ""
+    assert summary_line_problem('"""One concern.\n\nDetails.\n"""\n') == ""
+    assert summary_line_problem('"""One concern and\nanother.\n"""\n') != ""
+    assert summary_line_problem("x = 1\n") == "no docstring"
+
+
+def test_every_module_says_its_concern_in_its_first_line() -> None:
+    root = Path(cosim.__file__).resolve().parent
+    files = sorted(root.rglob("*.py")) + sorted(
+        Path(models.__file__).resolve().parent.rglob("*.py")
+    )
+    bad = [
+        f"{path}: {problem}"
+        for path in files
+        if "__pycache__" not in path.parts
+        and (problem := summary_line_problem(path.read_text(encoding="utf-8")))
+    ]
+    assert not bad, "\n".join(bad)

@@ -21,7 +21,7 @@ from cosim.blocks import FmuHost, InProcessHost
 from cosim.interop.packaging import build_fmu
 from cosim.master import JACOBI, Connection, Master, MasterSettings, System
 from cosim.models.block import Block, input_, output
-from cosim.models.strapdown_imu import StrapdownImu
+from cosim.models.blocks.strapdown_imu import StrapdownImu
 from cosim.variables import REAL
 
 H = 0.01

@@ -27,7 +27,7 @@ from pathlib import Path
 import pytest
 
 from cosim.interop.packaging import REQUIREMENTS, build_fmu
-from cosim.models.gauss_markov import GaussMarkov2
+from cosim.models.blocks.gauss_markov import GaussMarkov2
 
 CHILD = r"""
 import importlib.abc, json, sys

@@ -11,9 +11,9 @@ from scipy.linalg import expm
 
 from cosim.blocks import FmuHost, InProcessHost
 from cosim.interop.references import drive
+from cosim.models.blocks.hrg_platform import HrgPlatform, indexing_profile, split_attitude
 from cosim.models.constants import ARCMIN, DEG, OMEGA_IE
 from cosim.models.conventions import rot_z, rotvec_to_dcm
-from cosim.models.hrg_platform import HrgPlatform, indexing_profile, split_attitude
 
 DEG_H = math.pi / 180.0 / 3600.0
 

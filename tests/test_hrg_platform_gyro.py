@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from cosim.estimation.allan import allan_deviation
+from cosim.models.blocks.hrg_platform_gyro import HrgPlatformGyro
 from cosim.models.constants import OMEGA_IE
-from cosim.models.hrg_platform_gyro import HrgPlatformGyro
 
 DEG_H = math.pi / 180.0 / 3600.0
 

@@ -34,9 +34,9 @@ from cosim.alignment.hrg_model import (
     tilt_jacobian,
 )
 from cosim.alignment.hrg_two_position import HrgTwoPositionAlignment
+from cosim.models.blocks.hrg_platform import HrgPlatform
 from cosim.models.constants import ARCMIN, DEG, DEG_PER_HOUR, G0, OMEGA_IE
 from cosim.models.conventions import rot_z, wrap_angle
-from cosim.models.hrg_platform import HrgPlatform
 
 LAT = math.radians(45.0)
 G = 9.7966

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from test_ship_motion import strapdown_errors
 
+from cosim.models.blocks.land_vehicle import AHEAD_STEPS, LandVehicle
 from cosim.models.constants import ARCSEC, DEG
-from cosim.models.land_vehicle import AHEAD_STEPS, LandVehicle
 
 
 def make(**params: object) -> LandVehicle:

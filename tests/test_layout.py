@@ -34,6 +34,7 @@ ROOT = Path(__file__).resolve().parent.parent
 CORE = [
     "cosim/__init__.py",
     "cosim/scenario.py",
+    "cosim/scenario_parse.py",
     "cosim/master.py",
     "cosim/blocks.py",
     "cosim/units.py",
@@ -206,9 +207,9 @@ def test_the_core_imports_only_itself_and_the_models_at_run_time() -> None:
 
 def test_the_checker_resolves_imports() -> None:
     folder = ROOT / "cosim"
-    sample = folder / "scenario.py"
-    targets = {i.target for i in imports(sample)}
-    assert {"cosim.registry", "cosim.master.Master", "tomllib"} <= targets
+    targets = {i.target for i in imports(folder / "scenario.py")}
+    assert {"cosim.registry", "cosim.master.Master", "cosim.scenario_parse.BlockSpec"} <= targets
+    assert "tomllib" in {i.target for i in imports(folder / "scenario_parse.py")}
     assert module_name(folder / "__init__.py") == "cosim"
     assert module_name(ROOT / "tests" / "testblocks.py") == "testblocks"
 
@@ -526,3 +527,156 @@ def test_scenario_build_is_where_blocks_are_instantiated() -> None:
         if _calls(path, "InProcessHost") or _calls(path, "FmuHost")
     }
     assert places - HOSTS_ALSO_MADE_IN == {"cosim/scenario.py"}, sorted(places)
+
+
+def test_one_c_build() -> None:
+    """The kernels and the C FMUs are compiled by one function with one flag set."""
+    places = [
+        path.relative_to(ROOT).as_posix()
+        for path in python_files(*LIBRARY)
+        if '"-shared"' in path.read_text(encoding="utf-8")
+    ]
+    assert places == ["models/native/ccompile.py"], places
+
+
+# ------------------------------------------------------------------ no import circles
+
+#: Import circles allowed (none: split modules by concern instead).
+KNOWN_CIRCLES: list[list[str]] = []
+
+
+def _type_checking_only(node: ast.AST) -> bool:
+    """True for ``if TYPE_CHECKING:`` (its imports never run)."""
+    test = getattr(node, "test", None)
+    return isinstance(node, ast.If) and (
+        (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING")
+        or (isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+    )
+
+
+def import_graph(paths: list[Path]) -> dict[str, set[str]]:
+    """Which project modules each module imports.
+
+    Every import statement counts, at module level and inside functions alike: a lazy
+    import only moves the circle from import time to call time, and the two modules
+    still cannot be read, tested or moved one without the other. Imports under
+    ``if TYPE_CHECKING:`` do not count (they never run: annotations only).
+    ``from package import name`` is an import of ``package.name`` when that is a module
+    of the project, else of ``package``; ``import a.b.c`` of the longest project module
+    it names. A package's ``__init__`` is not implied by importing one of its modules.
+
+    Parameters
+    ----------
+    paths : list of Path
+        The modules' files.
+
+    Returns
+    -------
+    dict
+        ``{module: {imported project module, ...}}`` (no self-imports).
+    """
+    files = {module_name(p): p for p in paths}
+    graph: dict[str, set[str]] = {}
+    for me, path in files.items():
+        package = me if path.name == "__init__.py" else me.rpartition(".")[0]
+        found: set[str] = set()
+        todo: list[ast.AST] = [ast.parse(path.read_text(encoding="utf-8"))]
+        while todo:
+            node = todo.pop()
+            if _type_checking_only(node):
+                todo.extend(node.orelse)  # type: ignore[attr-defined]
+                continue
+            if isinstance(node, ast.Import):
+                for alias in node.names:
+                    name = alias.name
+                    while name and name not in files:
+                        name = name.rpartition(".")[0]
+                    found.add(name)
+            elif isinstance(node, ast.ImportFrom):
+                module = node.module or ""
+                if node.level:
+                    base = package.split(".")[: len(package.split(".")) - node.level + 1]
+                    module = ".".join(base + ([module] if module else []))
+                for alias in node.names:
+                    found.add(
+                        f"{module}.{alias.name}" if f"{module}.{alias.name}" in files else module
+                    )
+            todo.extend(ast.iter_child_nodes(node))
+        graph[me] = {m for m in found if m in files and m != me}
+    return graph
+
+
+def import_circles(graph: dict[str, set[str]]) -> list[list[str]]:
+    """The circles of an import graph: its strongly connected parts of two or more modules.
+
+    Parameters
+    ----------
+    graph : dict
+        ``{module: {imported module, ...}}``.
+
+    Returns
+    -------
+    list of list of str
+        Each circle's modules, sorted; the circles sorted.
+    """
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    circles: list[list[str]] = []
+    for root in sorted(graph):  # Tarjan's algorithm, iterative
+        if root in index:
+            continue
+        work = [(root, iter(sorted(graph[root])))]
+        index[root] = low[root] = len(index)
+        stack.append(root)
+        while work:
+            v, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = len(index)
+                    stack.append(child)
+                    work.append((child, iter(sorted(graph.get(child, ())))))
+                elif child in stack:
+                    low[v] = min(low[v], index[child])
+                continue
+            work.pop()
+            if work:
+                low[work[-1][0]] = min(low[work[-1][0]], low[v])
+            if low[v] == index[v]:
+                part = []
+                while True:
+                    w = stack.pop()
+                    part.append(w)
+                    if w == v:
+                        break
+                if len(part) > 1:
+                    circles.append(sorted(part))
+    return sorted(circles)
+
+
+def test_the_circle_finder_finds_lazy_and_indirect_circles(tmp_path: Path) -> None:
+    """Files outside the repository are named by their stem (:func:`module_name`)."""
+    files = {
+        "a.py": "import b\n",
+        "b.py": "def f():\n    from c import g\n",  # lazy: counts
+        "c.py": "import a.x\n",  # the longest module it names: a
+        "d.py": "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    import e\n",
+        "e.py": "from d import thing\n",  # d imports e for annotations only: no circle
+    }
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    graph = import_graph(sorted(tmp_path.glob("*.py")))
+    assert graph == {"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": set(), "e": {"d"}}
+    assert import_circles(graph) == [["a", "b", "c"]]
+    assert import_circles({"f": {"g"}, "g": {"f", "h"}, "h": {"h"}}) == [["f", "g"]]
+
+
+def test_no_import_circles() -> None:
+    graph = import_graph(python_files("cosim", "models"))
+    assert "cosim.verify.dispatch" in graph["cosim.verify.campaign"]  # the graph is read
+    circles = import_circles(graph)
+    new = [c for c in circles if c not in KNOWN_CIRCLES]
+    assert not new, "modules that import each other (split by concern):\n" + "\n".join(
+        " -> ".join(c) for c in new
+    )

@@ -11,9 +11,9 @@ from test_ship_motion import ARCSEC, Strapdown
 from test_ship_motion import make as make_ship
 
 from cosim.models import conventions as cv
+from cosim.models.blocks.deck_flexure import DeckFlexure
+from cosim.models.blocks.lever_arm import LeverArm
 from cosim.models.constants import DEG
-from cosim.models.deck_flexure import DeckFlexure
-from cosim.models.lever_arm import LeverArm
 
 MASTER = ("omega_ib_b", "omega_dot_b", "f_b", "dtheta_b", "dv_b", "rpy", "v_n")
 FLEX = ("theta", "theta_dot", "theta_ddot", "dtheta_flex", "dtheta_dot_flex")

@@ -156,7 +156,7 @@ def test_fault_stops_run_with_block_variable_time_and_keeps_results(
 
 def test_reset_then_run_again_reproduces_the_run_and_takes_new_seeds(fmu_dir) -> None:
     from cosim.blocks import FmuHost
-    from cosim.models.first_order_sensor import FirstOrderSensor
+    from cosim.models.blocks.first_order_sensor import FirstOrderSensor
 
     blocks = {
         "gm": FmuHost("gm", fmu_dir / "GaussMarkov2.fmu"),

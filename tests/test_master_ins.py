@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
+from cosim.models.blocks.master_ins import MasterIns
 from cosim.models.conventions import wrap_angle
-from cosim.models.master_ins import MasterIns
 
 RATE_V = np.array([1.0, -2.0, 0.5])  # m/s per s
 RATE_RPY = np.array([0.01, -0.02, 0.3])  # rad/s; yaw crosses +-pi during the run

@@ -58,6 +58,44 @@ def test_the_kernels_are_built_and_used() -> None:
         assert block.compiled, name
 
 
+def test_the_table_is_exactly_what_the_library_exports() -> None:
+    """One declaration table: every kernel of ``KERNELS`` is exported by the library, and
+    nothing else is (the sources mark kernels with ``KERNEL``, the build hides the rest)."""
+    nm = shutil.which("nm")
+    if nm is None:
+        pytest.skip("nm (binutils) is not installed")
+    proc = subprocess.run(
+        [nm, "-D", "--defined-only", str(native.library_path())],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    exported = {line.split()[-1] for line in proc.stdout.splitlines() if " T " in line}
+    assert exported == {k.name for k in native.KERNELS}
+    assert len(native.KERNELS) == len({k.name for k in native.KERNELS})
+
+
+def test_each_kernel_source_sits_in_the_package_it_speeds_up() -> None:
+    """The truth models' C beside the blocks, the filters' C beside the alignment code."""
+    c_files, h_files = native.sources()
+    wanted = {(k.package, k.source) for k in native.KERNELS}
+    assert len(c_files) == len(wanted)
+    root = Path(cosim.__file__).parent
+    for k in native.KERNELS:
+        folder = Path(models.__file__).parent if k.package.startswith("cosim.models") else root
+        sub = (
+            k.package.split(".")[2:]
+            if k.package.startswith("cosim.models")
+            else k.package.split(".")[1:]
+        )
+        assert folder.joinpath(*sub, k.source) in c_files, k
+        text = folder.joinpath(*sub, k.source).read_text()
+        assert f" {k.name}(" in text and "KERNEL" in text, k
+    assert {h.name for h in h_files} == {"conventions.h", "kernel.h"}
+    with pytest.raises(KeyError, match="no kernel 'nope'"):
+        native.kernel("nope")
+
+
 def test_the_switch_turns_them_off(monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.setenv(native.ENV, "0")
     assert native.library() is None
@@ -189,16 +227,14 @@ def test_an_fmu_without_the_kernels_gives_the_compiled_numbers(
 
 
 def test_without_a_compiler_the_models_run_numpy(tmp_path: Path) -> None:
-    """A copy of models/ with no library, in a process that finds no C compiler."""
-    shutil.copytree(
-        Path(models.__file__).parent,
-        tmp_path / "models",
-        ignore=shutil.ignore_patterns("build", "__pycache__"),
-    )
+    """A copy of the package with no library, in a process that finds no C compiler."""
+    skip = shutil.ignore_patterns("build", "__pycache__")
+    shutil.copytree(Path(cosim.__file__).parent, tmp_path / "cosim", ignore=skip)
+    shutil.copytree(Path(models.__file__).parent, tmp_path / "cosim" / "models", ignore=skip)
     script = (
         "import sys; sys.path.insert(0, sys.argv[1])\n"
-        "import models, models.native as n\n"
-        "from models.lever_arm import LeverArm\n"
+        "import cosim.models as models, cosim.models.native as n\n"
+        "from cosim.models.blocks.lever_arm import LeverArm\n"
         "b = LeverArm(); b.setup_experiment(0.0); b.exit_initialization_mode()\n"
         "b.step(0.0, 0.01)\n"
         "print(models.__file__); print(b.compiled); print(n.status())\n"
@@ -215,7 +251,7 @@ def test_without_a_compiler_the_models_run_numpy(tmp_path: Path) -> None:
     )
     assert proc.returncode == 0, proc.stderr
     where, compiled, status = proc.stdout.strip().splitlines()[-3:]
-    assert Path(where).parent == tmp_path / "models"
+    assert Path(where).parent == tmp_path / "cosim" / "models"
     assert compiled == "False"
     assert status.startswith("numpy (compiled kernels unavailable: no C compiler"), status
-    assert not (tmp_path / "models" / "native" / "build").exists()
+    assert not list(tmp_path.rglob("kernels-*.so"))

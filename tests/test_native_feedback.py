@@ -1,4 +1,4 @@
-"""The fine UKF's compiled feedback (``models/native/transfer_feedback.c``) against numpy.
+"""The fine UKF's compiled feedback (``cosim/alignment/transfer_feedback.c``) against numpy.
 
 In stage 2, with the compiled UKF and mechanisation, :class:`TransferFilter` runs the
 period and its closed-loop feedback in one call (``transfer_ukf_fed_period``); the numpy
@@ -24,8 +24,6 @@ bounded by it), as in ``tests/test_native_ukf.py``.
 
 from __future__ import annotations
 
-import ctypes
-
 import numpy as np
 import pytest
 from transfer_run import needs_library, runs_both_ways
@@ -42,9 +40,9 @@ from cosim.alignment.transfer_model import (
 )
 from cosim.estimation.checks import CovarianceError
 from cosim.models import native
+from cosim.models.blocks.lever_arm import r0_matrix
 from cosim.models.constants import DEG
 from cosim.models.conventions import euler_to_dcm, wrap_angle
-from cosim.models.lever_arm import r0_matrix
 
 LAT = 30.0 * DEG
 R0 = np.array([10.0, 10.0, 5.0])
@@ -122,8 +120,7 @@ def _navs() -> tuple[Strapdown, Strapdown]:
 def test_the_kernel_feeds_back_as_numpy(flexure: bool, heading: float) -> None:
     needs_library()
     layout = StateLayout(flexure)
-    p, i = ctypes.c_void_p, ctypes.c_int
-    kernel = native.declare("transfer_feedback", [p, p, p, p, i, i, i, p])
+    kernel = native.kernel("transfer_feedback")
     x, P = _state(layout, heading, seed=1)
     m1 = flexure_matrix(C_B_N, W_EB_B, r0_matrix(R0))
     compiled, ref = _navs()

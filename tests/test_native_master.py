@@ -1,4 +1,4 @@
-"""The transfer-alignment block's compiled period kernels (``models/native/transfer_master.c``).
+"""The transfer-alignment block's compiled period kernels (``cosim/alignment/transfer_master.c``).
 
 ``transfer_master_state`` (the master's attitude, rate w.r.t. the earth and velocity fed
 to the filter at every period) and ``transfer_period`` (what changes with the shown
@@ -11,8 +11,6 @@ every rotation), and whole runs with and without the compiled kernels.
 """
 
 from __future__ import annotations
-
-import ctypes
 
 import numpy as np
 import pytest
@@ -35,7 +33,6 @@ H = 0.02  # the scenario's macro step [s]
 #: (48 + 36 + 16 + 3) / 12 ~ 9 over h amplify that to ~36 eps / h. Allowed 64 eps / h
 #: (1.4e-12 rad/s at h = 0.02 s), absolute: rate components pass through zero.
 ATOL_RATE = 64.0 * EPS / H
-_P, _I, _D = ctypes.c_void_p, ctypes.c_int, ctypes.c_double
 
 
 def _period_values(block: TransferAlignment) -> np.ndarray:
@@ -105,7 +102,7 @@ def test_filter_gets_numpys_master_state_in_both_stages(compiled_run: dict) -> N
 
 
 def _state_kernel():  # noqa: ANN202 (a ctypes function)
-    fn = native.declare("transfer_master_state", [_P, _I, _I, _D, _P, _D, _D, _P, _P])
+    fn = native.kernel("transfer_master_state")
     assert fn is not None
     return fn
 
@@ -156,7 +153,7 @@ def test_period_outputs_equal_numpys(compiled_run: dict) -> None:
 
 def test_period_kernel_inverse_to_rounding(compiled_run: dict) -> None:
     """P_att and its inverse from the shown P of every step, and the singular case."""
-    fn = native.declare("transfer_period", [_P, _I, _P, _P, _P, _D, _P, _P], _I)
+    fn = native.kernel("transfer_period")
     assert fn is not None
     idx = np.array([4, 13, 16, 7], dtype=np.intc)
     bias = np.zeros(6)

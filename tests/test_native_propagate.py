@@ -1,4 +1,4 @@
-"""The compiled transfer-alignment error model (``models/native/transfer_model.c``).
+"""The compiled transfer-alignment error model (``cosim/alignment/transfer_model.c``).
 
 :func:`cosim.alignment.transfer_native.make_propagate` gives the UKF's process model: the C
 twin of :func:`cosim.alignment.transfer_model.propagate`, or the numpy function itself with
@@ -36,10 +36,10 @@ from cosim.alignment.transfer_model import (
 from cosim.alignment.transfer_native import PARAM_SIZE, CompiledPropagate, make_propagate
 from cosim.estimation import MerweScaledSigmaPoints, van_loan
 from cosim.models import native
+from cosim.models.blocks.lever_arm import r0_matrix
 from cosim.models.constants import DEG, E2, G0, OMEGA_IE, A
 from cosim.models.conventions import euler_rate_to_body_rate, euler_to_dcm, wrap_angle
 from cosim.models.earth import R_M
-from cosim.models.lever_arm import r0_matrix
 
 RTOL = 1e-12
 LAT = 30.0 * DEG

@@ -1,4 +1,4 @@
-"""The transfer-alignment block's compiled outputs (``models/native/transfer_publish.c``).
+"""The transfer-alignment block's compiled outputs (``cosim/alignment/transfer_publish.c``).
 
 Over a real co-simulation of ``scenarios/transfer_alignment.toml`` shortened to 12 s
 (waiting for the master, stage 1 acquisition, stage 2 from about 5 s): at every step the

@@ -1,4 +1,4 @@
-"""The fine UKF's compiled period (``models/native/transfer_ukf.c``) against the numpy UKF.
+"""The fine UKF's compiled period (``cosim/alignment/transfer_ukf.c``) against the numpy UKF.
 
 :class:`cosim.alignment.transfer_ukf_native.CompiledFinePeriod` must leave the UKF as its
 ``predict`` and ``update`` leave it, with the same NIS. The arithmetic is the same; the
@@ -33,9 +33,9 @@ from cosim.estimation import (
     van_loan,
 )
 from cosim.estimation.checks import CovarianceError
+from cosim.models.blocks.lever_arm import r0_matrix
 from cosim.models.constants import DEG
 from cosim.models.conventions import euler_to_dcm
-from cosim.models.lever_arm import r0_matrix
 
 LAT = 30.0 * DEG
 R0 = np.array([10.0, 10.0, 5.0])

@@ -28,10 +28,10 @@ from cosim.alignment.nav import (
 from cosim.alignment.transfer_model import PeriodSums
 from cosim.blocks import InProcessHost
 from cosim.master import Connection, Master, MasterSettings, System
+from cosim.models.blocks.stationary_base import StationaryBase
+from cosim.models.blocks.strapdown_imu import StrapdownImu
 from cosim.models.constants import OMEGA_IE
 from cosim.models.conventions import dcm_to_rotvec, euler_to_dcm, euler_to_dcm_3, rotvec_to_dcm_3
-from cosim.models.stationary_base import StationaryBase
-from cosim.models.strapdown_imu import StrapdownImu
 
 # sins_static.Strapdown: 200 steps of 0.1 s on a tilted table, one correction after 100
 STATIC_C = [

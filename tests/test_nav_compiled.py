@@ -1,4 +1,4 @@
-"""The compiled strapdown step (``models/native/strapdown.c``) against the numpy integrator.
+"""The compiled strapdown step (``cosim/alignment/strapdown.c``) against the numpy integrator.
 
 :class:`cosim.alignment.nav_compiled.CompiledStrapdown` must give the numbers of
 :class:`cosim.alignment.nav.Strapdown` (two-sample increments) to rounding: the scalar

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from cosim.estimation.allan import allan_deviation
-from cosim.models.platform_accelerometer import PlatformAccelerometer
+from cosim.models.blocks.platform_accelerometer import PlatformAccelerometer
 
 G = 9.7966  # m/s2, seed 000
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from cosim.models.ship_motion import AHEAD_STEPS, ShipMotion
+from cosim.models.blocks.ship_motion import AHEAD_STEPS, ShipMotion
 
 H = 0.05
 N = 2400  # 120 s, the transfer-alignment scenario's step and length

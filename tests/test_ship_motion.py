@@ -9,8 +9,8 @@ import pytest
 
 from cosim.models import constants, earth
 from cosim.models import conventions as cv
+from cosim.models.blocks.ship_motion import ShipMotion
 from cosim.models.constants import ARCSEC, DEG
-from cosim.models.ship_motion import ShipMotion
 
 
 def make(**params: object) -> ShipMotion:

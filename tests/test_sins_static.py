@@ -28,12 +28,12 @@ from cosim.blocks import InProcessHost
 from cosim.errors import ScenarioError, SimulationError
 from cosim.estimation import observability_rank, piecewise_observability_rank, van_loan
 from cosim.master import Connection, Master, MasterSettings, System
+from cosim.models.blocks.stationary_base import StationaryBase
+from cosim.models.blocks.strapdown_imu import StrapdownImu
+from cosim.models.blocks.turntable import Turntable
 from cosim.models.constants import ARCMIN, ARCSEC, DEG, DEG_PER_HOUR, MICRO_G, OMEGA_IE
 from cosim.models.conventions import dcm_to_euler_3, euler_to_dcm_3, rotvec_to_dcm_3
 from cosim.models.earth import gravity
-from cosim.models.stationary_base import StationaryBase
-from cosim.models.strapdown_imu import StrapdownImu
-from cosim.models.turntable import Turntable
 
 ROOT = Path(__file__).resolve().parent.parent
 H = measurement_matrix()

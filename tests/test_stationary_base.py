@@ -10,8 +10,8 @@ from test_ship_motion import ARCSEC, Strapdown
 
 from cosim.models import constants, earth
 from cosim.models import conventions as cv
+from cosim.models.blocks.stationary_base import StationaryBase
 from cosim.models.constants import DEG
-from cosim.models.stationary_base import StationaryBase
 
 
 def make(**params: object) -> StationaryBase:

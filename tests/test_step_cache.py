@@ -16,9 +16,9 @@ import numpy as np
 import pytest
 
 from cosim.models.block import STEP_RTOL, Block, same_step
-from cosim.models.deck_flexure import DeckFlexure
-from cosim.models.gauss_markov import GaussMarkov2
-from cosim.models.strapdown_imu import AHEAD_STEPS, StrapdownImu
+from cosim.models.blocks.deck_flexure import DeckFlexure
+from cosim.models.blocks.gauss_markov import GaussMarkov2
+from cosim.models.blocks.strapdown_imu import AHEAD_STEPS, StrapdownImu
 
 H = 0.05
 N = 2400  # 120 s, the transfer-alignment scenario's step and length

@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 from cosim.estimation.allan import allan_deviation, relative_error
-from cosim.models.constants import DEG_PER_HOUR, DEG_PER_SQRT_HOUR, G0, MICRO_G
-from cosim.models.strapdown_imu import (
+from cosim.models.blocks.strapdown_imu import (
     PRESETS,
     StrapdownImu,
     integrated_first_order,
     white_density_from_random,
 )
+from cosim.models.constants import DEG_PER_HOUR, DEG_PER_SQRT_HOUR, G0, MICRO_G
 
 
 def make(**params: object) -> StrapdownImu:

@@ -11,9 +11,9 @@ from test_ship_motion import make as make_ship
 
 from cosim.models import conventions as cv
 from cosim.models import earth
+from cosim.models.blocks.stationary_base import StationaryBase
+from cosim.models.blocks.turntable import Turntable
 from cosim.models.constants import DEG
-from cosim.models.stationary_base import StationaryBase
-from cosim.models.turntable import Turntable
 
 BASE = ("omega_ib_b", "omega_dot_b", "f_b", "dtheta_b", "dv_b", "rpy")
 

@@ -197,7 +197,7 @@ def static_error_model(run: RunFacts) -> ScenarioErrorModel | None:
     from cosim.alignment.static_model import FilterTuning, static_lines, table_dcm
     from cosim.models.constants import DEG_PER_HOUR, MICRO_G
     from cosim.models.conventions import euler_to_dcm_3
-    from cosim.models.turntable import Turntable
+    from cosim.models.blocks.turntable import Turntable
 
     a = run.parameters
     if int(a["init_mode"]) == 2:

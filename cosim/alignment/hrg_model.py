@@ -6,7 +6,7 @@ The filters that estimate with it are in :mod:`cosim.alignment.hrg_filters`, the
 Frames and symbols
 ------------------
 ENU geographic frame ``n``; platform frame ``p`` (x, y level, z up, azimuth ``A``
-counter-clockwise from ENU), as in :mod:`models.hrg_platform`. ``L`` latitude,
+counter-clockwise from ENU), as in :mod:`models.blocks.hrg_platform`. ``L`` latitude,
 ``Omega`` earth rate, ``Oc = Omega cos L``, ``Os = Omega sin L``, ``g`` gravity.
 Level misalignments ``theta_E``, ``theta_N`` are small rotations about geographic
 east and north; the platform azimuth ``A`` is not small. Complex shorthand for

@@ -1,4 +1,4 @@
-"""The strapdown integrator with its step compiled (``models/native/strapdown.c``).
+"""The strapdown integrator with its step compiled (``cosim/alignment/strapdown.c``).
 
 :class:`CompiledStrapdown` is a :class:`cosim.alignment.nav.Strapdown` whose state lives in
 one float64 buffer that the C step reads and writes in place; its attributes (``C_s_n``,
@@ -18,7 +18,6 @@ in the order k = 0, 1, 2, numpy's may go through BLAS (``tests/test_nav_compiled
 
 from __future__ import annotations
 
-import ctypes
 from typing import Any
 
 import numpy as np
@@ -203,16 +202,13 @@ def make_strapdown(
     -------
     Strapdown
         A :class:`CompiledStrapdown` when ``options.coning == "two-sample"`` and
-        :func:`models.native.declare` finds the kernel (not with ``INS_COSIM_NATIVE=0``),
+        :func:`cosim.models.native.kernel` finds the kernel (not with ``INS_COSIM_NATIVE=0``),
         else a :class:`~cosim.alignment.nav.Strapdown`.
     """
     step = refresh = None
     if options.coning == "two-sample":
-        p, d = ctypes.c_void_p, ctypes.c_double
-        step = native.declare(
-            "strapdown_two_sample_step", [p, p, p, p, d, ctypes.c_int, ctypes.c_long]
-        )
-        refresh = native.declare("strapdown_refresh", [p, p])
+        step = native.kernel("strapdown_two_sample_step")
+        refresh = native.kernel("strapdown_refresh")
     if step is None or refresh is None:
         return Strapdown(C_s_n, lat, height, v_n, options=options)
     return CompiledStrapdown(step, refresh, C_s_n, lat, height, v_n, options=options)

@@ -1,4 +1,4 @@
-"""Transfer alignment (seed 001 and issue 26): slave strapdown, 19-state nonlinear model, UKF.
+"""The transfer-alignment filter block: a slave strapdown matched to the master by a UKF.
 
 The block :class:`TransferAlignment` aligns a slave strapdown IMU on a ship's deck to
 the ship's master INS by **velocity matching** (``matching = 0``, the default and seed
@@ -68,7 +68,7 @@ sums (:class:`~cosim.alignment.transfer_model.PeriodSums`) restart.
 Outputs ("alignment accuracy")
 ------------------------------
 What is compared: the slave's estimated attitude ``C^_s_n`` against its true attitude
-``C_s_n`` (from :class:`models.lever_arm.LeverArm`'s ``rpy_s``), both referred to the
+``C_s_n`` (from :class:`models.blocks.lever_arm.LeverArm`'s ``rpy_s``), both referred to the
 master's true attitude, i.e. the **relative attitude** (misalignment) of the slave in
 master axes, ``C_s_b = C_b_n^T C_s_n``, which is the mounting plus the current flexure
 (seed 001's "true misalignment" of Table 1: 1.055706 deg, 1.015315 deg, 29.98939 deg).
@@ -88,15 +88,15 @@ the most probable hypothesis (``nis`` too: its own UKF's innovation). Also: ``re
 estimates with their sigmas, ``nees`` (attitude error against ``P``, 3 degrees of
 freedom), ``nis`` (0 before the first update) and ``stage``.
 
-Compiled outputs: when :func:`models.native.declare` gives ``transfer_publish``
-(``models/native/transfer_publish.c``), the per-step outputs (``rpy_err``,
+Compiled outputs: when :func:`cosim.models.native.kernel` gives ``transfer_publish``
+(``cosim/alignment/transfer_publish.c``), the per-step outputs (``rpy_err``,
 ``rpy_sigma``, ``rel_rpy``, ``nees``) and the step's master attitude ``C_b_n`` are one
 call; :meth:`TransferAlignment.attitude_numpy` stays as the fallback and the readable
 statement (``INS_COSIM_NATIVE=0``, no library), equal to rounding
 (``tests/test_native_publish.py``). Either way the vector outputs are written in place
 into the block's output buffer while they are its views, so the master reads them as one
 slice (:meth:`models.block.Block.real_reader`); an output rebound from outside is
-assigned a new array instead. Once per filter period, ``models/native/transfer_master.c``
+assigned a new array instead. Once per filter period, ``cosim/alignment/transfer_master.c``
 gives the master's state fed to the filter (``transfer_master_state``: attitude, rate
 w.r.t. the earth from the attitude ring, velocity; :meth:`TransferAlignment.master_state_numpy`)
 and what changes with the shown covariance (``transfer_period``: ``P_att``, its inverse,
@@ -112,7 +112,6 @@ stage is not designed for (README, seed 001).
 
 from __future__ import annotations
 
-import ctypes
 import math
 from collections import deque
 
@@ -158,7 +157,6 @@ PERIOD_OUTPUTS = (
 )
 #: The master attitudes kept for the rate (:func:`~cosim.alignment.transfer_model.master_rate`).
 HISTORY = 5
-_PTR = ctypes.c_void_p
 
 
 # ----------------------------------------------------------------------------- the block
@@ -240,7 +238,7 @@ class TransferAlignment(Block):
     @property
     def compiled(self) -> bool:
         """True when the per-step outputs are computed by ``transfer_publish`` (set by
-        :meth:`initialize`, :func:`models.native.declare`), False on the numpy path."""
+        :meth:`initialize`, :func:`cosim.models.native.kernel`), False on the numpy path."""
         return getattr(self, "_native_publish", None) is not None
 
     @property
@@ -427,18 +425,12 @@ class TransferAlignment(Block):
             setattr(self, name, view)
         self._io = native.Buffers(self, PUBLISH_INPUTS, PUBLISH_OUTPUTS)
         self._period_io = native.Buffers(self, (), PERIOD_OUTPUTS)
-        self._native_publish = native.declare(
-            "transfer_publish", [_PTR, _PTR, ctypes.c_int, _PTR, _PTR, _PTR], ctypes.c_double
-        )
+        self._native_publish = native.kernel("transfer_publish")
         if self._native_publish is not None:
             self._c_nav = np.zeros((3, 3))
             self._c_nav_ptr = native.pointer(self._c_nav)
             self._ring_ptrs = [native.pointer(c) for c in self._ring]
-        self._native_period = native.declare(
-            "transfer_period",
-            [_PTR, ctypes.c_int, _PTR, _PTR, _PTR, ctypes.c_double, _PTR, _PTR],
-            ctypes.c_int,
-        )
+        self._native_period = native.kernel("transfer_period")
         if self._native_period is not None:
             lay = self._layout
             starts = [lay.att.start, lay.nabla.start, lay.eps.start, 7 if lay.flexure else -1]
@@ -446,11 +438,7 @@ class TransferAlignment(Block):
             self._period_idx_ptr = native.pointer(self._period_idx)
             self._bias = np.zeros(6)
             self._bias_ptr = native.pointer(self._bias)
-        self._native_master = native.declare(
-            "transfer_master_state",
-            [_PTR, ctypes.c_int, ctypes.c_int, ctypes.c_double, _PTR]
-            + [ctypes.c_double, ctypes.c_double, _PTR, _PTR],
-        )
+        self._native_master = native.kernel("transfer_master_state")
         if self._native_master is not None:
             self._ring_ptr = native.pointer(self._ring)
             self._v_io = native.Buffers(self, ("v_master_n",), ())

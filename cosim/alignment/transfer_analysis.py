@@ -28,10 +28,10 @@ from cosim.estimation.covariance import (
     covariance_analysis,
 )
 from cosim.estimation.error_model import StepGrid, propagate
+from cosim.models.blocks.lever_arm import r0_matrix
 from cosim.models.constants import DEG, OMEGA_IE
 from cosim.models.conventions import cross, euler_to_dcm
 from cosim.models.earth import euler_motion_truth
-from cosim.models.lever_arm import r0_matrix
 
 FloatArray = NDArray[np.float64]
 
@@ -48,7 +48,7 @@ def ship_truth(
     phase: ArrayLike = _ZERO3,
     rpy_mean: ArrayLike = _ZERO3,
 ) -> dict[str, FloatArray]:
-    """Closed-form moored-ship motion (the equations of :mod:`models.ship_motion`).
+    """Closed-form moored-ship motion (the equations of :mod:`models.blocks.ship_motion`).
 
     Parameters
     ----------

@@ -39,9 +39,9 @@ from cosim.estimation import (
     angle_residual_fn,
     van_loan,
 )
+from cosim.models.blocks.lever_arm import r0_matrix
 from cosim.models.constants import ARCMIN, DEG
 from cosim.models.conventions import cross, euler_to_dcm, wrap_angle
-from cosim.models.lever_arm import r0_matrix
 
 FloatArray = NDArray[np.float64]
 

@@ -9,7 +9,7 @@ alone or ``estimate_lag = 1``. It extends the 19-state (13 without flexure) mode
   navigation frame, as Z-Y-X Euler angles: the true slave-to-master rotation is
   ``C_s_b = exp([theta x]) exp([mu x]) C_nom`` (``C_nom = euler_to_dcm(mount_rpy)``, the
   nominal mounting; ``mu`` master axes; ``theta`` the deck flexure; as
-  :class:`models.lever_arm.LeverArm`: ``C_s_d = exp([mu x]) C_nom``) and
+  :class:`models.blocks.lever_arm.LeverArm`: ``C_s_d = exp([mu x]) C_nom``) and
   ``E(nu) = C_b_n exp(-[mu x]) C_b_n^T`` (``nu ~ -C_b_n mu``);
 * ``tau`` (1, with ``estimate_lag = 1``): the lag of the master's data behind the
   slave's [s] (positive: the master's values arrive ``tau`` late), a random constant.

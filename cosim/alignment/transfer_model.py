@@ -13,8 +13,8 @@ Frames and symbols (:mod:`models.conventions`)
 body (FRD), ``s`` slave body (FRD). ``C_s_n`` true slave attitude, ``C^_s_n`` the slave
 mechanisation's attitude, ``C_b_n`` master attitude (from the master INS). ``r_0`` the
 nominal lever arm from master to slave in master axes, ``theta`` the deck flexure angle
-(master axes, :mod:`models.deck_flexure`), ``R_0`` seed 001's lever-arm matrix
-(:func:`models.lever_arm.r0_matrix`), ``Omega`` earth rate, ``L`` latitude.
+(master axes, :mod:`models.blocks.deck_flexure`), ``R_0`` seed 001's lever-arm matrix
+(:func:`models.blocks.lever_arm.r0_matrix`), ``Omega`` earth rate, ``L`` latitude.
 
 Seed 001 works in ENU with a right-forward-up body; its heading is counter-clockwise.
 Every equation below is written directly in NED/FRD (``T = [[0,1,0],[1,0,0],[0,0,-1]]``
@@ -464,7 +464,7 @@ def propagate(x: ArrayLike, sums: PeriodSums, layout: StateLayout) -> FloatArray
     """Nonlinear error model over one filter period (the UKF's ``fx``), batched.
 
     The readable statement of the model and the fallback of its C twin
-    ``transfer_propagate`` (``models/native/transfer_model.c``, the same formulas in the
+    ``transfer_propagate`` (``cosim/alignment/transfer_model.c``, the same formulas in the
     same order), which :func:`cosim.alignment.transfer_native.make_propagate` picks.
 
     Parameters

@@ -11,7 +11,6 @@ readable statement of the model; the C code repeats it formula by formula.
 
 from __future__ import annotations
 
-import ctypes
 from collections.abc import Callable
 from typing import Any
 
@@ -24,7 +23,7 @@ from cosim.models.constants import E2, OMEGA_IE, A
 
 FloatArray = NDArray[np.float64]
 
-#: Offsets in the kernel's parameter block (``models/native/transfer_model.c``): ``T``,
+#: Offsets in the kernel's parameter block (``cosim/alignment/transfer_model.c``): ``T``,
 #: ``lat``, ``height``, then the constants ``OMEGA_IE, A, E2``.
 PARAM_T, PARAM_LAT, PARAM_HEIGHT, PARAM_CONSTANTS = 0, 1, 2, 3
 #: Where the arrays of :class:`PeriodSums` start, back to back in this order (the last
@@ -41,15 +40,6 @@ _PARAM_ARRAYS = (
     ("phi_flex", (6, 6)),
 )
 PARAM_SIZE = 99
-
-_ARGTYPES = [
-    ctypes.c_void_p,
-    ctypes.c_void_p,
-    ctypes.c_void_p,
-    ctypes.c_long,
-    ctypes.c_int,
-    ctypes.c_int,
-]
 
 
 class CompiledPropagate:
@@ -121,7 +111,7 @@ class CompiledPropagate:
         -------
         int
             Address of the block (:data:`PARAM_SIZE` doubles, the layout of
-            ``models/native/transfer_model.c``), valid while this object lives.
+            ``cosim/alignment/transfer_model.c``), valid while this object lives.
 
         Raises
         ------
@@ -175,7 +165,7 @@ class CompiledPropagate:
 def make_propagate(layout: StateLayout) -> Callable[[ArrayLike, PeriodSums], FloatArray]:
     """The UKF's process model for ``layout``: compiled where it can run, else numpy.
 
-    Call it where the filter is built (not at import): :func:`models.native.declare`
+    Call it where the filter is built (not at import): :func:`cosim.models.native.kernel`
     reads ``INS_COSIM_NATIVE`` then.
 
     Parameters
@@ -191,7 +181,7 @@ def make_propagate(layout: StateLayout) -> Callable[[ArrayLike, PeriodSums], Flo
         ``transfer_propagate``, else ``propagate(x, sums, layout)`` (same numbers to
         rounding).
     """
-    kernel = native.declare("transfer_propagate", _ARGTYPES, None)
+    kernel = native.kernel("transfer_propagate")
     if kernel is None:
 
         def numpy_propagate(x: ArrayLike, sums: PeriodSums) -> FloatArray:

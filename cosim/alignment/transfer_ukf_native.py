@@ -4,7 +4,7 @@ In stage 2 :class:`cosim.alignment.transfer_filter.TransferFilter` runs, once pe
 period, ``ukf.predict`` (sigma points through the error model, the heading-aware mean and
 residual, plus ``Q``) and ``ukf.update`` with the velocity match, then the NIS.
 :class:`CompiledFinePeriod` does the same in ``transfer_ukf_period``
-(``models/native/transfer_ukf.c``), with the error model of ``transfer_propagate``
+(``cosim/alignment/transfer_ukf.c``), with the error model of ``transfer_propagate``
 (:mod:`cosim.alignment.transfer_native`), and leaves the UKF's attributes as its own two
 calls leave them (``x``, ``P``, ``x_prior``, ``P_prior``, ``z_pred``, ``S``, ``K``, ``y``,
 ``x_post``, ``P_post``). The numpy UKF stays the fallback and the readable statement: the
@@ -13,7 +13,7 @@ fails, the compiled call writes nothing and the numpy calls run, so the error ra
 the UKF's own.
 
 Given the address of a :class:`~cosim.alignment.nav_compiled.CompiledStrapdown`'s state
-(``nav``), the same call (``transfer_ukf_fed_period``, ``models/native/transfer_feedback.c``)
+(``nav``), the same call (``transfer_ukf_fed_period``, ``cosim/alignment/transfer_feedback.c``)
 also does the period's closed-loop feedback, the twin of ``TransferFilter._feedback`` and
 of the reset that follows it: the mechanisation corrected in place with the posterior,
 ``ukf.x`` and ``ukf.P`` the state and covariance after the reset (``x_post``, ``P_post``
@@ -23,7 +23,6 @@ stay the posterior). One ctypes call per period, instead of some 40 numpy operat
 
 from __future__ import annotations
 
-import ctypes
 from typing import Any
 
 import numpy as np
@@ -33,10 +32,6 @@ from cosim.estimation import UnscentedKalmanFilter
 from cosim.models import native
 
 FloatArray = NDArray[np.float64]
-
-_P, _D, _I = ctypes.c_void_p, ctypes.c_double, ctypes.c_int
-_ARGTYPES = [_P, _P, _P, _P, _P, _P, _P, _P, _D, _I, _I, _I, _P]
-_FED_ARGTYPES = [*_ARGTYPES, _P, _P, _P]  # + nav state, m1 (3 x 6), fed: x_new (n), P (n x n)
 
 
 class CompiledFinePeriod:
@@ -183,8 +178,8 @@ def make_fine_period(propagate: Any, n: int, flexure: bool, heading: int) -> Any
     """
     if not hasattr(propagate, "pack"):
         return None
-    kernel = native.declare("transfer_ukf_period", _ARGTYPES, ctypes.c_int)
-    fed_kernel = native.declare("transfer_ukf_fed_period", _FED_ARGTYPES, ctypes.c_int)
+    kernel = native.kernel("transfer_ukf_period")
+    fed_kernel = native.kernel("transfer_ukf_fed_period")
     if kernel is None or fed_kernel is None:
         return None
     return CompiledFinePeriod(kernel, fed_kernel, propagate, n, flexure, heading)

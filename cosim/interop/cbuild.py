@@ -8,10 +8,11 @@ them into one shared library and zips it the way FMI lays an FMU out::
     modelDescription.xml
     binaries/<platform>/<modelIdentifier>.so     linux64 (FMI 2.0) or x86_64-linux (FMI 3.0)
 
-The compiler is ``$CC`` when set, else ``cc``, else ``gcc``; flags: ``-shared -fPIC
--O2 -std=c99 -fvisibility=hidden`` (only the FMI functions are exported, through the
-headers' ``FMI2_Export`` / ``FMI3_Export``), ``-lm``. Linux only, as the rest of the
-test suite.
+The compiler and its flags are the project's one C build
+(:func:`cosim.models.native.ccompile.compile_shared`, the same as the compiled
+kernels'): ``$CC`` when set, else ``cc``, else ``gcc``, with ``-fvisibility=hidden`` among
+the flags (only the FMI functions are exported, through the headers' ``FMI2_Export`` /
+``FMI3_Export``). Linux only, as the rest of the test suite.
 
 Command line (for building the vendor example by hand)::
 
@@ -22,8 +23,6 @@ from __future__ import annotations
 
 import os
 import platform
-import shutil
-import subprocess
 import sys
 import tempfile
 import zipfile
@@ -32,6 +31,7 @@ from pathlib import Path
 from xml.etree import ElementTree
 
 from cosim.errors import UserError
+from cosim.models.native.ccompile import CompileError, compile_shared
 
 __all__ = ["CBuildError", "build_c_fmu", "fmi_headers"]
 
@@ -54,13 +54,6 @@ def fmi_headers() -> Path:
     import fmpy
 
     return Path(fmpy.__file__).resolve().parent / "c-code"
-
-
-def _compiler() -> str:
-    for candidate in (os.environ.get("CC"), "cc", "gcc"):
-        if candidate and shutil.which(candidate):
-            return candidate
-    raise CBuildError("no C compiler found: expected $CC, 'cc' or 'gcc' on the PATH (install gcc)")
 
 
 def _describe(xml_text: str, where: str) -> tuple[str, str]:
@@ -139,27 +132,10 @@ def build_c_fmu(
         )
     with tempfile.TemporaryDirectory(prefix="ins_cosim_cbuild_") as tmp:
         library = Path(tmp) / f"{identifier}.so"
-        command = [
-            _compiler(),
-            "-shared",
-            "-fPIC",
-            "-O2",
-            "-std=c99",
-            "-Wall",
-            "-fvisibility=hidden",
-            f"-I{fmi_headers()}",
-            *(f"-D{d}" for d in defines),
-            "-o",
-            str(library),
-            *map(str, sources),
-            "-lm",
-        ]
-        proc = subprocess.run(command, capture_output=True, text=True, check=False)
-        if proc.returncode != 0:
-            raise CBuildError(
-                f"compiling {', '.join(s.name for s in sources)} failed "
-                f"(exit {proc.returncode}): {proc.stderr.strip()}"
-            )
+        try:
+            compile_shared(sources, library, include_dirs=[fmi_headers()], defines=defines)
+        except CompileError as exc:
+            raise CBuildError(f"{exc}{': ' + exc.log.strip() if exc.log else ''}") from exc
         out_path.parent.mkdir(parents=True, exist_ok=True)
         partial = out_path.with_name(out_path.name + ".part")
         with zipfile.ZipFile(partial, "w", zipfile.ZIP_DEFLATED) as zf:

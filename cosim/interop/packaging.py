@@ -1,4 +1,4 @@
-"""Pack the block classes of ``models/`` into FMI 2.0 co-simulation FMUs with pythonfmu.
+"""Pack the model blocks (``models/blocks/``) into FMI 2.0 co-simulation FMUs with pythonfmu.
 
 Each FMU holds a short entry script that imports its class, plus in its resources a
 ``cosim`` stub package holding a copy of ``cosim.models`` (the repository's ``models/``)
@@ -102,11 +102,12 @@ if _previous is not None and getattr(_previous, "_ins_cosim_fmu_stub", False):
         _own = os.path.join(os.path.abspath(sys.path[0]), "cosim")
         if os.path.isdir(_own) and _own not in _previous.__path__:
             _previous.__path__.append(_own)
-        _models = sys.modules.get("cosim.models")
-        _own_models = os.path.join(_own, "models")
-        if _models is not None and os.path.isdir(_own_models):
-            if _own_models not in _models.__path__:
-                _models.__path__.append(_own_models)
+        for _sub in ("models", "models.blocks"):
+            _package = sys.modules.get("cosim." + _sub)
+            _own_sub = os.path.join(_own, *_sub.split("."))
+            if _package is not None and os.path.isdir(_own_sub):
+                if _own_sub not in _package.__path__:
+                    _package.__path__.append(_own_sub)
 
 try:
     from {module} import {name}  # noqa: E402,F401
@@ -181,7 +182,7 @@ def entry_script(module: str, name: str) -> str:
     Parameters
     ----------
     module : str
-        The class's module (``models.gauss_markov``).
+        The class's module (``models.blocks.gauss_markov``).
     name : str
         The class name, also the FMU's model identifier.
 
@@ -202,11 +203,29 @@ def entry_script(module: str, name: str) -> str:
     )
 
 
+def _module_file(dotted: str) -> Path | None:
+    """The file of a module of the models package (``cosim.models.x.y``), or None."""
+    parts = dotted.split(".")
+    if parts[:2] != ["cosim", "models"]:
+        return None
+    base = MODELS_DIR.joinpath(*parts[2:])
+    for candidate in (base.with_suffix(".py"), base / "__init__.py"):
+        if parts[2:] and candidate.is_file():
+            return candidate
+    return MODELS_DIR / "__init__.py" if not parts[2:] else None
+
+
+def _dotted(path: Path) -> str:
+    """``cosim.models...`` name of a file of the models package."""
+    rel = path.relative_to(MODELS_DIR).with_suffix("").parts
+    return ".".join(("cosim", "models", *(p for p in rel if p != "__init__")))
+
+
 def needed_modules(source: Path) -> set[str]:
     """The modules of the models package that the code in ``source`` imports, transitively.
 
-    Read from the import statements (relative ones inside the package, ``cosim.models.x``
-    from outside it), functions' lazy imports included.
+    Read from the import statements (relative and absolute ones), functions' lazy imports
+    included; a package's ``__init__`` comes with each of its modules.
 
     Parameters
     ----------
@@ -216,37 +235,39 @@ def needed_modules(source: Path) -> set[str]:
     Returns
     -------
     set of str
-        Names of the package's top-level modules and subpackages (``"block"``,
-        ``"native"``, ...), ``source``'s own module included when it is one of them.
+        The files' paths inside the package, without ``.py`` (``"__init__"``, ``"block"``,
+        ``"native/__init__"``, ``"blocks/lever_arm"``, ...), ``source``'s own included
+        when it is in the package.
     """
-    top = {p.stem for p in MODELS_DIR.glob("*.py")} | {
-        p.parent.name for p in MODELS_DIR.glob("*/__init__.py")
-    }
-    found: set[str] = set()
+    found: set[Path] = set()
     todo = [source.resolve(), MODELS_DIR / "__init__.py"]
     while todo:
         path = todo.pop()
-        inside = path.parent == MODELS_DIR
-        if inside and path.stem in top:
-            found.add(path.stem)
+        inside = path.is_relative_to(MODELS_DIR)
+        if path in found:
+            continue
+        if inside:
+            found.add(path)
+            package = path.parent
+            while package != MODELS_DIR:  # a package's __init__ runs before its modules
+                todo.append(package / "__init__.py")
+                package = package.parent
+        me = _dotted(path) if inside else ""
+        here = me if path.name == "__init__.py" else me.rpartition(".")[0]
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
             if not isinstance(node, ast.ImportFrom):
                 continue
             module = node.module or ""
-            if node.level == 1 and inside:
-                names = [module.split(".")[0]] if module else [a.name for a in node.names]
-            elif node.level == 0 and module.startswith("cosim.models."):
-                names = [module.split(".")[2]]
-            elif node.level == 0 and module == "cosim.models":
-                names = [a.name for a in node.names]
-            else:
-                continue
-            for name in names:
-                if name in top and name not in found:
-                    found.add(name)
-                    file = MODELS_DIR / f"{name}.py"
-                    todo.append(file if file.is_file() else MODELS_DIR / name / "__init__.py")
-    return found
+            if node.level:
+                if not inside:
+                    continue
+                base = here.split(".")[: len(here.split(".")) - node.level + 1]
+                module = ".".join(base + ([module] if module else []))
+            for name in (module, *(f"{module}.{a.name}" for a in node.names)):
+                file = _module_file(name)
+                if file is not None:
+                    todo.append(file)
+    return {p.relative_to(MODELS_DIR).with_suffix("").as_posix() for p in found}
 
 
 def models_copy(dest: Path, source: Path | None = None) -> Path:
@@ -275,13 +296,21 @@ def models_copy(dest: Path, source: Path | None = None) -> Path:
 
     def ignore(folder: str, names: list[str]) -> set[str]:
         skip = {n for n in names if n in ("docs", "reference", "__pycache__", "build")}
-        if keep is not None and Path(folder).resolve() == MODELS_DIR:
-            skip |= {n for n in names if n != "__init__.py" and n.removesuffix(".py") not in keep}
+        if keep is not None:
+            rel = Path(folder).resolve().relative_to(MODELS_DIR).as_posix()
+            prefix = "" if rel == "." else rel + "/"
+            for n in names:
+                if n.endswith(".py") and prefix + n.removesuffix(".py") not in keep:
+                    skip.add(n)
+                elif (Path(folder) / n).is_dir() and not any(
+                    k.startswith(prefix + n + "/") for k in keep
+                ):
+                    skip.add(n)
         return skip | {n for n in names if n.endswith((".c", ".h", ".md", ".pyc", ".so"))}
 
     package = dest / "cosim"
     shutil.copytree(MODELS_DIR, package / "models", ignore=ignore, dirs_exist_ok=True)
-    if library.is_file() and (keep is None or "native" in keep):
+    if library.is_file() and (keep is None or "native/__init__" in keep):
         build = package / "models" / "native" / "build"
         build.mkdir(parents=True, exist_ok=True)
         shutil.copy2(library, build / library.name)

@@ -3,7 +3,7 @@
 The reproduction (:mod:`cosim.reproduce.seed000`) of HRG platform two-position
 self-alignment, UPF against EKF:
 
-Runs ``scenarios/hrg_two_position.toml`` (truth: :class:`models.hrg_platform.HrgPlatform`
+Runs ``scenarios/hrg_two_position.toml`` (truth: :class:`models.blocks.hrg_platform.HrgPlatform`
 with the HRG triad and the pulse accelerometers; filter:
 :class:`cosim.alignment.hrg_two_position.HrgTwoPositionAlignment`) as
 

@@ -36,9 +36,9 @@ from cosim.alignment.nav import euler_rate_matrix_inv
 from cosim.alignment.static_model import FilterTuning, static_covariance
 from cosim.estimation import anees_bounds
 from cosim.estimation.covariance import CovarianceHistory
+from cosim.models.blocks.turntable import Turntable
 from cosim.models.constants import ARCMIN, ARCSEC, OMEGA_IE
 from cosim.models.earth import gravity
-from cosim.models.turntable import Turntable
 from cosim.package_data import scenario_file
 from cosim.scenario import load_scenario
 from cosim.verify.campaign import CampaignError, campaign_jobs, prepare, simulate

@@ -575,7 +575,9 @@ _SOURCE_CLASSES = (
     "El-Sheimy & Youssef, Inertial sensors technologies for navigation applications, "
     "Satellite Navigation 1:2 (2020); figures: decade centres chosen here"
 )
-_SOURCE_PRESETS = "models/strapdown_imu.PRESETS (the project's grade presets); " + _SOURCE_CLASSES
+_SOURCE_PRESETS = (
+    "models/blocks/strapdown_imu.PRESETS (the project's grade presets); " + _SOURCE_CLASSES
+)
 
 #: The grade presets, best last. Indicative figures of a class, not of any product.
 GRADES = (

@@ -35,6 +35,7 @@ from cosim.errors import ScenarioError
 from cosim.foreign import foreign_fmus
 from cosim.scenario import Scenario, build_master, load_scenario
 from cosim.sensors.pairing import check_log_pairs
+from cosim.verify.dispatch import run_jobs
 from cosim.verify.lock import holding_report_folder
 from cosim.verify.pool import WorkerPool, keeps_workers
 from cosim.verify.records import RunRecord, read_records, save_record, write_metrics_table
@@ -42,7 +43,7 @@ from cosim.verify.requirements import Requirement, Verdict
 from cosim.verify.seeds import SEED_RULE, Stratified, run_seeds, stratified_draws
 from cosim.verify.statistics import judge, overall_exit_code
 from cosim.verify.tables import check_tables
-from cosim.verify.workers import CampaignError, Job, WorkerSpec, expand_parameters, run_jobs
+from cosim.verify.workers import CampaignError, Job, WorkerSpec, expand_parameters
 
 __all__ = [
     "Campaign",

@@ -1,4 +1,4 @@
-"""Requirements on a filter's estimates, for runs without truth (real logs; issue 26, item 5).
+"""Requirements on a filter's estimates, for runs without truth (real sensor logs).
 
 A run on recorded logs has no truth: the filter's error outputs (``*_err``, estimate minus
 the truth input) would compare its estimate with the truth inputs' start values. Two kinds

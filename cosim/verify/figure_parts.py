@@ -1,6 +1,9 @@
-"""What the report's requirement figures share (:mod:`cosim.verify.report`,
-:mod:`cosim.verify.estimate_plots`, :mod:`cosim.verify.consistency_report`): the verdict's
-colour and title, the completed runs' recorded histories, and the judged time span."""
+"""What the report's requirement figures share: verdict colours, histories, the judged span.
+
+Used by :mod:`cosim.verify.report`, :mod:`cosim.verify.estimate_plots` and
+:mod:`cosim.verify.consistency_report`: the verdict's colour and title, the completed
+runs' recorded histories, and the judged time span.
+"""
 
 from __future__ import annotations
 

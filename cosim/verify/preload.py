@@ -1,4 +1,6 @@
-"""Imported by the forkserver of local workers (:data:`cosim.verify.pool.PRELOAD`) only.
+"""The built-in blocks' identities, worked out once in the local workers' forkserver.
+
+Imported by the forkserver of local workers (:data:`cosim.verify.pool.PRELOAD`) only.
 
 Importing this module works out the identity (GUID and source hash,
 :func:`cosim.blocks.class_identity`, cached per process) of every built-in block class

@@ -1,4 +1,4 @@
-"""Where the runs of a campaign go: this process, a local pool, or a Dask cluster.
+"""A campaign's runs as a worker makes them: the jobs, one run, runs in this process.
 
 A worker builds the scenario's blocks (loads its FMUs) once, the first time it sees a
 :class:`WorkerSpec`, and resets them between runs; each :class:`Job` sets its
@@ -6,14 +6,17 @@ parameters on a copy of the built system's own before the run. A run's numbers d
 only on its job (seeds, parameters, stratified draws), never on the worker that ran it
 nor on the runs it ran before.
 
+Where the jobs go is :func:`cosim.verify.dispatch.run_jobs`:
+
 - ``workers == 1``: in this process, one after the other; in one worker process when the
   scenario holds an FMU not built by ins-cosim (:attr:`WorkerSpec.isolate`), so that its
   crash is one crashed run, as with more workers.
 - ``workers > 1``: local worker processes (:class:`cosim.verify.pool.WorkerPool`), each
   running one job at a time sent to it through its own pipe, so the parent always knows
-  which run each process is running. A pool given to :func:`run_jobs` keeps its
-  processes, and their built blocks, from one call to the next (the looks of
-  ``verify --until-decided``); without one, a pool lives for one call.
+  which run each process is running. A pool given to
+  :func:`cosim.verify.dispatch.run_jobs` keeps its processes, and their built blocks,
+  from one call to the next (the looks of ``verify --until-decided``); without one, a
+  pool lives for one call.
 - ``cluster = "tcp://host:8786"``: a Dask distributed cluster; each worker thread builds
   the blocks once on its first run. The workers must see the scenario and FMU files at
   the same paths (a shared file system).
@@ -36,7 +39,6 @@ import signal
 import socket
 import threading
 import time
-import uuid
 import warnings
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
@@ -337,54 +339,6 @@ def build_worker(spec: WorkerSpec, board: StepBoard | None = None) -> None:
     _state(spec)
 
 
-def run_jobs(
-    spec: WorkerSpec,
-    jobs: Sequence[Job],
-    done: Callable[[RunRecord], None],
-    *,
-    workers: int = 1,
-    cluster: str | None = None,
-    pool: Any = None,
-) -> None:
-    """Run jobs and hand each finished record to ``done`` (in completion order).
-
-    Parameters
-    ----------
-    spec : WorkerSpec
-        The campaign.
-    jobs : sequence of Job
-        The runs.
-    done : callable
-        Called in this process with each :class:`RunRecord` as it finishes.
-    workers : int
-        Local processes (1: this process), for a pool that lives for this call.
-    cluster : str, optional
-        Address of a Dask scheduler; replaces local workers.
-    pool : cosim.verify.pool.WorkerPool, optional
-        Run on this pool (its size replaces ``workers``); its processes and built blocks
-        stay for its next call.
-
-    Raises
-    ------
-    CampaignError
-        The Dask scheduler cannot be reached, or local workers cannot start.
-    """
-    jobs = list(jobs)
-    if not jobs:
-        return
-    if cluster:
-        _run_dask(spec, jobs, done, cluster)
-    elif pool is not None:
-        pool.run(spec, jobs, done)
-    elif (workers > 1 and len(jobs) > 1) or spec.isolate:
-        from cosim.verify.pool import WorkerPool  # it runs the jobs with run_one
-
-        with WorkerPool(workers) as once:
-            once.run(spec, jobs, done)
-    else:
-        run_here(spec, jobs, done)
-
-
 def run_here(
     spec: WorkerSpec, jobs: Sequence[Job], done: Callable[[RunRecord], None], *, keep: bool = False
 ) -> None:
@@ -515,35 +469,3 @@ def crashed_record(
         t_end=t_end,
         tag=job.tag,
     )
-
-
-def _run_dask(
-    spec: WorkerSpec, jobs: list[Job], done: Callable[[RunRecord], None], address: str
-) -> None:
-    from distributed import Client, KilledWorker, as_completed
-
-    try:
-        client = Client(address, timeout="30s")
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise CampaignError(f"cannot connect to the Dask scheduler at {address}: {exc}") from exc
-    token = uuid.uuid4().hex[:12]
-    futures = []
-    try:
-        futures = [
-            client.submit(run_one, spec, job, key=f"ins-cosim-run-{token}-{n:05d}")
-            for n, job in enumerate(jobs)
-        ]
-        job_of = {fut.key: job for fut, job in zip(futures, jobs, strict=True)}
-        for fut in as_completed(futures):
-            try:
-                record = fut.result()
-            except KilledWorker as exc:  # its workers died, again and again
-                text = f"the Dask workers running it died ({exc}); recorded as crashed"
-                record = crashed_record(spec, job_of[fut.key], text)
-            done(record)
-    except BaseException:
-        with contextlib.suppress(Exception):
-            client.cancel(futures)
-        raise
-    finally:
-        client.close()

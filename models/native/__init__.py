@@ -1,22 +1,29 @@
-"""Compiled step kernels of the models: a small C library built with gcc, loaded with ctypes.
+"""The compiled kernels: one table of C functions, built into one library, loaded with ctypes.
 
-The hot loops of :class:`models.lever_arm.LeverArm`, :class:`models.deck_flexure.DeckFlexure`
-and :class:`models.strapdown_imu.StrapdownImu` have a C twin in ``kernels.c`` (the same
-formulas in the same order, one call per step, no warm-up). The numpy code stays, as the
-fallback and the readable statement of each model; both give the same outputs to rounding
-(``tests/test_native.py`` checks 1e-12, in-process and inside an FMU).
+Some hot loops have a C twin that lives beside the Python module it speeds up (the same
+formulas in the same order, one call per step or per filter period): the model blocks'
+steps in ``models/blocks/*.c`` (:class:`cosim.models.blocks.lever_arm.LeverArm`,
+:class:`~cosim.models.blocks.deck_flexure.DeckFlexure`,
+:class:`~cosim.models.blocks.strapdown_imu.StrapdownImu`,
+:class:`~cosim.models.blocks.ship_motion.ShipMotion`), the alignment filters' strapdown
+step and transfer-alignment kernels in ``cosim/alignment/*.c``. :data:`KERNELS` is the
+one table of them: each kernel's C function, the source that defines it and its ctypes
+signature. The numpy code stays, as the fallback and the readable statement of each
+model; both give the same outputs to rounding (``tests/test_native*.py``).
 
-Where the library lives. :func:`build` compiles ``kernels.c`` into
-``models/native/build/kernels-<sha256 of the source, 16 hex>.so`` (``make setup`` and
-``make fmus`` do it; a missing library is also built at first use unless the package is an
-FMU's copy). When that folder is not writable (a wheel installed into a read-only
-site-packages) the library goes to the user's cache instead, :func:`cache_dir`
-(``$XDG_CACHE_HOME/ins-cosim/kernels`` or ``~/.cache/ins-cosim/kernels``). The name carries
-the source's hash, so a changed source is never served by a stale library. ``make fmus``
-packs the library (not the C sources) with the models package into every FMU's
-resources, so an FMU loads it from its own copy (no compiler needed where the FMU runs).
-A failed compilation is tried once per process and reported in one short line (the first
-compiler error; ``python -m cosim.models.native`` prints the whole log).
+Where the library lives. :func:`build` compiles every source of the table, with the one
+C build of the project (:func:`cosim.models.native.ccompile.compile_shared`: one
+compiler choice, one flag set), into ``models/native/build/kernels-<sha256 of the sources
+and headers, 16 hex>.so`` (``make setup`` and ``make fmus`` do it; a missing library is
+also built at first use unless the package is an FMU's copy). When that folder is not
+writable (a wheel installed into a read-only site-packages) the library goes to the
+user's cache instead, :func:`cache_dir` (``$XDG_CACHE_HOME/ins-cosim/kernels`` or
+``~/.cache/ins-cosim/kernels``). The name carries the sources' hash, so a changed source
+is never served by a stale library. ``make fmus`` packs the library (not the C sources)
+with the models package into every FMU's resources, so an FMU loads it from its own copy
+(no compiler needed where the FMU runs). A failed compilation is tried once per process
+and reported in one short line (the first compiler error; ``python -m
+cosim.models.native`` prints the whole log).
 
 Which path runs (:func:`library`, read when a block initialises):
 
@@ -33,28 +40,22 @@ from __future__ import annotations
 
 import ctypes
 import hashlib
+import importlib.util
 import os
-import shutil
-import subprocess
-import tempfile
 import warnings
 from collections.abc import Callable
+from dataclasses import dataclass
 from operator import attrgetter, is_
 from pathlib import Path
 
 import numpy as np
 
+from cosim.models.native.ccompile import CompileError, compile_shared, compiler
+
 HERE = Path(__file__).resolve().parent
-#: Every C source of the library (``kernels.c``: the truth models; ``strapdown.c``: the
-#: alignment filters' mechanisation; the other files: further filter kernels) ...
-SOURCES = tuple(sorted(HERE.glob("*.c")))
-#: ... and the headers they include (``conventions.h``): hashed with them.
-HEADERS = tuple(sorted(HERE.glob("*.h")))
 BUILD_DIR = HERE / "build"
 #: Environment variable that switches the compiled kernels off when set to ``0``.
 ENV = "INS_COSIM_NATIVE"
-#: Compiler flags: IEEE arithmetic (no -ffast-math, no contraction into FMA).
-CFLAGS = ("-O2", "-std=c99", "-shared", "-fPIC", "-ffp-contract=off")
 
 #: Set in the environment once the fall-back warning was given, so that worker processes
 #: started afterwards do not repeat it.
@@ -62,9 +63,103 @@ WARNED_ENV = "INS_COSIM_NATIVE_WARNED"
 
 _state: dict[str, object] = {}
 
+_P, _D, _I, _L = ctypes.c_void_p, ctypes.c_double, ctypes.c_int, ctypes.c_long
+
+
+@dataclass(frozen=True)
+class Kernel:
+    """One compiled kernel: a C function, where it is defined, its ctypes signature.
+
+    Attributes
+    ----------
+    name : str
+        The C function (exported with ``KERNEL``, ``models/native/kernel.h``).
+    package : str
+        The package whose folder holds the source, beside the module it speeds up.
+    source : str
+        The ``.c`` file in that folder.
+    argtypes : tuple
+        ctypes argument types (``c_void_p`` for ``double *``).
+    restype : ctypes type or None
+        Result type (None: ``void``).
+    """
+
+    name: str
+    package: str
+    source: str
+    argtypes: tuple
+    restype: object = None
+
+
+_BLOCKS, _ALIGNMENT = "cosim.models.blocks", "cosim.alignment"
+_UKF_PERIOD = (_P, _P, _P, _P, _P, _P, _P, _P, _D, _I, _I, _I, _P)
+
+#: Every compiled kernel of the project, the one place a C signature is declared.
+KERNELS = (
+    Kernel("lever_arm_step", _BLOCKS, "lever_arm.c", (_P, _P, _P, _D, _P, _D, _D), _I),
+    Kernel("lever_arm_publish", _BLOCKS, "lever_arm.c", (_P, _P, _D, _P)),
+    Kernel("deck_flexure_step", _BLOCKS, "deck_flexure.c", (_P, _P, _P, _P, _P, _P, _P, _D)),
+    Kernel("strapdown_imu_step", _BLOCKS, "strapdown_imu.c", (_P, _P, _P, _P, _P, _P, _P, _D)),
+    Kernel("ship_truth_steps", _BLOCKS, "ship_motion.c", (_P, _P, _P, _P, _L, _L, _P)),
+    Kernel("strapdown_two_sample_step", _ALIGNMENT, "strapdown.c", (_P, _P, _P, _P, _D, _I, _L)),
+    Kernel("strapdown_refresh", _ALIGNMENT, "strapdown.c", (_P, _P)),
+    Kernel("transfer_propagate", _ALIGNMENT, "transfer_model.c", (_P, _P, _P, _L, _I, _I)),
+    Kernel("transfer_ukf_period", _ALIGNMENT, "transfer_ukf.c", _UKF_PERIOD, _I),
+    Kernel(
+        "transfer_ukf_fed_period", _ALIGNMENT, "transfer_feedback.c", (*_UKF_PERIOD, _P, _P, _P), _I
+    ),
+    Kernel(
+        "transfer_feedback", _ALIGNMENT, "transfer_feedback.c", (_P, _P, _P, _P, _I, _I, _I, _P)
+    ),
+    Kernel("transfer_publish", _ALIGNMENT, "transfer_publish.c", (_P, _P, _I, _P, _P, _P), _D),
+    Kernel(
+        "transfer_period", _ALIGNMENT, "transfer_master.c", (_P, _I, _P, _P, _P, _D, _P, _P), _I
+    ),
+    Kernel(
+        "transfer_master_state",
+        _ALIGNMENT,
+        "transfer_master.c",
+        (_P, _I, _I, _D, _P, _D, _D, _P, _P),
+    ),
+)
+#: The headers the sources include (``#include "..."``), by package: hashed with them,
+#: their folders passed as include folders.
+HEADERS = (("cosim.models", "conventions.h"), ("cosim.models.native", "kernel.h"))
+
 
 class NativeFallbackWarning(UserWarning):
     """The compiled kernels are unavailable: the models run their numpy code (slower)."""
+
+
+def _folder(package: str) -> Path | None:
+    """The folder of a package, found without importing it; None when it is not here."""
+    try:
+        spec = importlib.util.find_spec(package)
+    except ImportError:
+        return None
+    if spec is None or not spec.submodule_search_locations:
+        return None
+    return Path(next(iter(spec.submodule_search_locations)))
+
+
+def sources() -> tuple[list[Path], list[Path]]:
+    """The C sources of :data:`KERNELS` and the headers they include, as files.
+
+    Returns
+    -------
+    sources, headers : list of Path
+        In table order, each once; files missing from this copy of the package (an FMU
+        carries only the library) are left out.
+    """
+    found: dict[str, list[Path]] = {"c": [], "h": []}
+    pairs = [(k.package, k.source) for k in KERNELS] + list(HEADERS)
+    for package, name in pairs:
+        folder = _folder(package)
+        file = None if folder is None else folder / name
+        kind = "h" if name.endswith(".h") else "c"
+        if file is not None and file.is_file() and file not in found[kind]:
+            found[kind].append(file)
+    return found["c"], found["h"]
 
 
 def cache_dir() -> Path:
@@ -86,37 +181,37 @@ def _writable(folder: Path) -> bool:
     return os.access(folder, os.W_OK)
 
 
+def _complete() -> bool:
+    """True when every source and header of the table is in this copy of the package."""
+    c_files, h_files = sources()
+    wanted = {(k.package, k.source) for k in KERNELS} | set(HEADERS)
+    return len(c_files) + len(h_files) == len(wanted)
+
+
 def library_path() -> Path:
-    """Where the library of the current ``kernels.c`` is (or would be) built.
+    """Where the library of the current sources is (or would be) built.
 
     Returns
     -------
     Path
         ``models/native/build/kernels-<hash>.so``, the hash being the first 16 hex
-        digits of the SHA-256 of the C sources and headers (:data:`SOURCES`,
-        :data:`HEADERS`: names and contents); the same name in :func:`cache_dir` when it
-        is there or the package folder is read-only. A copy without C sources (an FMU's
-        resources) has the library it was packed with.
+        digits of the SHA-256 of the C sources and headers (:func:`sources`: names and
+        contents); the same name in :func:`cache_dir` when it is there or the package
+        folder is read-only. A copy without all the C sources (an FMU's resources) has
+        the library it was packed with.
     """
-    if not SOURCES:
+    if not _complete():
         packed = sorted(BUILD_DIR.glob("kernels-*.so"))
         return packed[-1] if packed else BUILD_DIR / "kernels-unavailable.so"
     sha = hashlib.sha256()
-    for source in SOURCES + HEADERS:
+    c_files, h_files = sources()
+    for source in c_files + h_files:
         sha.update(source.name.encode() + b"\0" + source.read_bytes() + b"\0")
     name = f"kernels-{sha.hexdigest()[:16]}.so"
     cached = cache_dir() / name
     if (BUILD_DIR / name).is_file() or (not cached.is_file() and _writable(BUILD_DIR)):
         return BUILD_DIR / name
     return cached
-
-
-def _short(stderr: str) -> str:
-    """The first compiler error of a log, and how many lines followed."""
-    lines = [line for line in stderr.strip().splitlines() if line.strip()]
-    first = next((line for line in lines if "error" in line), lines[0] if lines else "")
-    more = len(lines) - 1
-    return first.strip() + (f" (+{more} more lines: python -m cosim.models.native)" if more else "")
 
 
 def _in_fmu() -> bool:
@@ -127,20 +222,13 @@ def _in_fmu() -> bool:
     return False
 
 
-def _compiler() -> str | None:
-    for candidate in (os.environ.get("CC"), "gcc", "cc"):
-        if candidate and shutil.which(candidate):
-            return candidate
-    return None
-
-
 def build(force: bool = False) -> Path:
-    """Compile the C sources into :func:`library_path` (atomically; old builds removed).
+    """Compile the sources of :data:`KERNELS` into :func:`library_path` (old builds removed).
 
     Parameters
     ----------
     force : bool
-        Rebuild even when the library of the current source exists.
+        Rebuild even when the library of the current sources exists.
 
     Returns
     -------
@@ -150,24 +238,31 @@ def build(force: bool = False) -> Path:
     Raises
     ------
     RuntimeError
-        No C compiler (``$CC``, ``gcc`` or ``cc``), or the compilation failed (its
-        messages included).
+        No C compiler (:func:`cosim.models.native.ccompile.compiler`), a source missing,
+        or the compilation failed (the first error in the message, the whole log in
+        :func:`build_log`).
     """
     target = library_path()
     if target.is_file() and not force:
         return target
     if "build_error" in _state and not force:
         raise RuntimeError(str(_state["build_error"]))
-    cc = _compiler()
-    if not SOURCES:
+    c_files, h_files = sources()
+    error = ""
+    if not _complete():
         error = f"{target.name} is not in this copy of the models (no C sources to build)"
-    elif cc is None:
+    elif compiler() is None:
         error = (
-            "no C compiler for the models' kernels: expected $CC, 'gcc' or 'cc' on the "
+            "no C compiler for the compiled kernels: expected $CC, 'cc' or 'gcc' on the "
             "PATH (install gcc); the models run their numpy code meanwhile"
         )
     else:
-        error = _compile(cc, target)
+        includes = list(dict.fromkeys(h.parent for h in h_files))
+        try:
+            compile_shared(c_files, target, include_dirs=includes)
+        except CompileError as exc:
+            _state["build_log"] = exc.log
+            error = f"{exc}; the whole log: python -m cosim.models.native"
     if error:
         _state["build_error"] = error
         raise RuntimeError(error)
@@ -188,38 +283,12 @@ def build_log() -> str:
     return str(_state.get("build_log", ""))
 
 
-def _compile(cc: str, target: Path) -> str:
-    """Compile :data:`SOURCES` into ``target`` atomically; "" or the short error."""
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=".kernels-", suffix=".so", dir=target.parent)
-    os.close(fd)
-    try:
-        proc = subprocess.run(
-            [cc, *CFLAGS, "-o", tmp, *map(str, SOURCES), "-lm"], capture_output=True, text=True
-        )
-        if proc.returncode != 0:
-            _state["build_log"] = proc.stderr
-            return f"compiling the models' kernels failed ({cc}): {_short(proc.stderr)}"
-        os.replace(tmp, target)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return ""
-
-
 def _declare(lib: ctypes.CDLL) -> None:
-    p, d, i = ctypes.c_void_p, ctypes.c_double, ctypes.c_int
-    signatures = {
-        "lever_arm_step": ([p, p, p, d, p, d, d], i),
-        "lever_arm_publish": ([p, p, d, p], None),
-        "deck_flexure_step": ([p, p, p, p, p, p, p, d], None),
-        "strapdown_imu_step": ([p, p, p, p, p, p, p, d], None),
-        "ship_truth_steps": ([p, p, p, p, ctypes.c_long, ctypes.c_long, p], None),
-    }
-    for name, (args, res) in signatures.items():
-        fn = getattr(lib, name)
-        fn.argtypes = args
-        fn.restype = res
+    """Give every kernel of :data:`KERNELS` its signature (a missing one: AttributeError)."""
+    for kernel in KERNELS:
+        fn = getattr(lib, kernel.name)
+        fn.argtypes = list(kernel.argtypes)
+        fn.restype = kernel.restype
 
 
 def _load() -> ctypes.CDLL | None:
@@ -253,41 +322,38 @@ def library() -> ctypes.CDLL | None:
     Returns
     -------
     ctypes.CDLL or None
-        None when ``INS_COSIM_NATIVE=0`` or the library is unavailable (see :func:`status`).
+        None when ``INS_COSIM_NATIVE=0`` or the library is unavailable (see :func:`status`);
+        every kernel of :data:`KERNELS` is an attribute, with its signature.
     """
     if os.environ.get(ENV, "1").strip() == "0":
         return None
     return _load()
 
 
-def declare(name: str, argtypes: list, restype: object = None) -> Callable | None:
-    """A kernel of the library with its C signature, for a block being initialised.
-
-    The truth models' kernels are declared when the library loads; the filters' own
-    kernels (``strapdown.c`` and the others) are declared by the module that calls them.
+def kernel(name: str) -> Callable | None:
+    """A kernel of :data:`KERNELS`, for a block or filter being initialised.
 
     Parameters
     ----------
     name : str
-        The C function.
-    argtypes : list
-        Its ctypes argument types (``ctypes.c_void_p`` for ``double *``, ...).
-    restype : ctypes type or None
-        Its result type (None: ``void``).
+        The C function, as in the table.
 
     Returns
     -------
     callable or None
-        The function; None when :func:`library` is None (numpy path) or the library has no
-        such function.
+        The function, its signature set from the table; None when :func:`library` is
+        None (numpy path).
+
+    Raises
+    ------
+    KeyError
+        ``name`` is not in the table.
     """
+    if name not in {k.name for k in KERNELS}:
+        known = ", ".join(k.name for k in KERNELS)
+        raise KeyError(f"no kernel {name!r} in models/native KERNELS; known: {known}")
     lib = library()
-    fn = None if lib is None else getattr(lib, name, None)
-    if fn is None:
-        return None
-    fn.argtypes = argtypes
-    fn.restype = restype
-    return fn
+    return None if lib is None else getattr(lib, name)
 
 
 def status() -> str:

@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg import expm
 
-from .block import Block, output, parameter, same_step
+from cosim.models.block import Block, output, parameter, same_step
 
 
 def discretize_gm2(beta: float, q: float, h: float) -> tuple[np.ndarray, np.ndarray]:

@@ -1,29 +1,18 @@
-/* Compiled step kernels of models/ (the arithmetic of the numpy code, one call per step).
+/* The compiled step of LeverArm (lever_arm.py, the arithmetic of its numpy code, one call per step).
  *
- * Each function mirrors a numpy step of a model block operation by operation (same
- * formulas, same order where it matters), so that the outputs equal the numpy path's to
- * rounding (~1e-16 relative). Arrays are float64, C order; the layouts are those of the
- * Python callers (models/lever_arm.py, models/deck_flexure.py, models/strapdown_imu.py),
- * which keep the numpy code as the fallback. Built by models/native/__init__.py with
- * gcc -O2 (no -ffast-math: IEEE arithmetic, no reassociation, no contraction).
+ * The function mirrors the block's numpy step operation by operation (same formulas, same
+ * order where it matters), so that the outputs equal the numpy path's to rounding (~1e-16
+ * relative; tests/test_native.py). Arrays are float64, C order, in the layout of the
+ * Python caller, which keeps the numpy code as the fallback. Declared in the kernel table
+ * and built with every other kernel by models/native (IEEE arithmetic: no -ffast-math, no
+ * contraction into FMA).
  */
 #include <math.h>
 
 #include "conventions.h"
-
-static const double TWO_PI = 6.283185307179586476925286766559; /* 2 * math.pi */
+#include "kernel.h"
 
 /* ------------------------------------------------------------------ small helpers */
-static void cross3(const double *a, const double *b, double *o)
-{
-    double o0 = a[1] * b[2] - a[2] * b[1];
-    double o1 = a[2] * b[0] - a[0] * b[2];
-    double o2 = a[0] * b[1] - a[1] * b[0];
-    o[0] = o0;
-    o[1] = o1;
-    o[2] = o2;
-}
-
 /* o = v @ M (row vector times a row-major 3x3 matrix) */
 static void vecmat3(const double *v, const double *m, double *o)
 {
@@ -88,7 +77,7 @@ static void lever_node(const double *par, const double *w, const double *wd, con
         r[i] = r0[i] + rt[i];
     double wr = w[0] * r[0] + w[1] * r[1] + w[2] * r[2];
     double ww = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
-    cross3(wd, r, cwr);
+    nc_cross3(wd, r, cwr);
     for (int i = 0; i < 3; i++)
         f_p[i] = f[i] + cwr[i] + w[i] * wr - r[i] * ww;
     if (!flexure) {
@@ -99,7 +88,7 @@ static void lever_node(const double *par, const double *w, const double *wd, con
     double rd[3], rdd[3], cr[3];
     matvec3(R0, thd, rd);
     matvec3(R0, thdd, rdd);
-    cross3(w, rd, cr);
+    nc_cross3(w, rd, cr);
     for (int i = 0; i < 3; i++)
         f_p[i] = f_p[i] + 2.0 * cr[i] + rdd[i];
     double jr[9], w_d[3], f_d[3], jt[3];
@@ -144,7 +133,7 @@ static void lever_finish(const double *par, const double *in, double lat, const 
     vecmat3(w_ie, cbn, wn);
     for (int i = 0; i < 3; i++)
         w_eb[i] = in[i] - wn[i];
-    cross3(w_eb, r_p, c);
+    nc_cross3(w_eb, r_p, c);
     matvec3(R0, thd, rd);
     for (int i = 0; i < 3; i++)
         s[i] = c[i] + rd[i];
@@ -156,7 +145,7 @@ static void lever_finish(const double *par, const double *in, double lat, const 
 }
 
 /* outputs at the time of the current inputs (LeverArm._publish_end) */
-void lever_arm_publish(const double *par, const double *in, double lat, double *out)
+KERNEL void lever_arm_publish(const double *par, const double *in, double lat, double *out)
 {
     static const double zero[3] = {0.0, 0.0, 0.0};
     int flexure = par[21] != 0.0;
@@ -226,7 +215,7 @@ static int force_path(double *st, double t, double h, const double *x1, const do
 }
 
 /* One LeverArm.step from t to t + h (the nodes are evaluated one at a time); returns 0. */
-int lever_arm_step(const double *par, double *st, const double *in, double lat, double *out,
+KERNEL int lever_arm_step(const double *par, double *st, const double *in, double lat, double *out,
                    double t, double h)
 {
     double dt = par[24];
@@ -325,130 +314,4 @@ int lever_arm_step(const double *par, double *st, const double *in, double lat, 
         f_end[i] = f_s[i] + rs[i];
     lever_finish(par, in, lat, w_s, f_end, th1, thd1, c_d_b, out);
     return 0;
-}
-
-/* ------------------------------------------------------------------ deck flexure
- * phi, root: (axis, 3, 3); noise: (axis, 3) standard normals of this step;
- * st: theta (0:3), theta_dot (3:6), updated; beta2 (3), two_beta (3);
- * out: theta 0, theta_dot 3, theta_ddot 6, eta 9, dtheta_flex 12, dtheta_dot_flex 15 (18)
- */
-void deck_flexure_step(const double *phi, const double *root, const double *noise,
-                       const double *two_beta, const double *beta2, double *st, double *out,
-                       double h)
-{
-    for (int a = 0; a < 3; a++) {
-        const double *p = phi + 9 * a, *q = root + 9 * a, *z = noise + 3 * a;
-        double x0[3] = {0.0, st[a], st[3 + a]}, x1[3];
-        for (int i = 0; i < 3; i++)
-            x1[i] = (p[3 * i] * x0[0] + p[3 * i + 1] * x0[1] + p[3 * i + 2] * x0[2]) +
-                    (q[3 * i] * z[0] + q[3 * i + 1] * z[1] + q[3 * i + 2] * z[2]);
-        double d_theta = x1[1] - st[a], d_theta_dot = x1[2] - st[3 + a];
-        double eta = (d_theta_dot + two_beta[a] * d_theta + beta2[a] * x1[0]) / h;
-        out[a] = x1[1];
-        out[3 + a] = x1[2];
-        out[6 + a] = -two_beta[a] * x1[2] - beta2[a] * x1[1] + eta;
-        out[9 + a] = eta;
-        out[12 + a] = d_theta;
-        out[15 + a] = d_theta_dot;
-        st[a] = x1[1];
-        st[3 + a] = x1[2];
-    }
-}
-
-/* ------------------------------------------------------------------ strapdown IMU
- * d_true: (2, 3) [dtheta_b; dv_b]; err: (2, 3, 3); bias_int, white: (2, 3) of this step;
- * lsb: (2); resid: (2, 3), updated;
- * out: dtheta_meas_b 0, dv_meas_b 3, omega_meas_b 6, f_meas_b 9, gyro_bias_b 12,
- *      accel_bias_b 15 (18)
- */
-void strapdown_imu_step(const double *d_true, const double *err, const double *bias_int,
-                        const double *white, const double *lsb, double *resid, double *out,
-                        double h)
-{
-    for (int s = 0; s < 2; s++) {
-        const double *d = d_true + 3 * s, *e = err + 9 * s;
-        double y[3];
-        for (int i = 0; i < 3; i++) {
-            double ed = e[3 * i] * d[0] + e[3 * i + 1] * d[1] + e[3 * i + 2] * d[2];
-            y[i] = d[i] + ed + bias_int[3 * s + i] + white[3 * s + i];
-        }
-        if (lsb[s] > 0.0)
-            for (int i = 0; i < 3; i++) {
-                double acc = resid[3 * s + i] + y[i];
-                y[i] = lsb[s] * nearbyint(acc / lsb[s]);
-                resid[3 * s + i] = acc - y[i];
-            }
-        for (int i = 0; i < 3; i++) {
-            out[3 * s + i] = y[i];
-            out[6 + 3 * s + i] = y[i] / h;
-            out[12 + 3 * s + i] = bias_int[3 * s + i] / h;
-        }
-    }
-}
-
-/* ------------------------------------------------------------------ ship motion
- * The moored ship (no linear motion) at the instants tt, and the rows of ShipMotion's
- * look-ahead (models/ship_motion.py, models/earth.py euler_motion_truth, fixed position).
- * par: w (0:3), amp (3:6), phase (6:9), rpy_mean (9:12), OMEGA_IE cos lat0 (12),
- *      OMEGA_IE sin lat0 (13), gravity (14)
- * tt: (size m) instants, step k's nodes at k m .. k m + m - 1; wts: (m) Simpson weights;
- * steps: (size) step lengths; rows: (size, 21) rpy (yaw wrapped), v_n (0), omega_ib_b,
- * omega_dot_b, f_b at each step end, then dtheta_b, dv_b (plain integrals)
- */
-void ship_truth_steps(const double *par, const double *tt, const double *wts,
-                      const double *steps, long size, long m, double *rows)
-{
-    const double *w = par, *amp = par + 3, *phase = par + 6, *mean = par + 9;
-    double wc = par[12], ws = par[13], g = par[14];
-    for (long k = 0; k < size; k++) {
-        double sum_w[3] = {0.0, 0.0, 0.0}, sum_f[3] = {0.0, 0.0, 0.0};
-        double *row = rows + 21 * k;
-        for (long j = 0; j < m; j++) {
-            double t = tt[k * m + j], rpy[3], d[3], dd[3];
-            for (int i = 0; i < 3; i++) {
-                double arg = t * w[i] + phase[i];
-                double sa = sin(arg), ca = cos(arg);
-                rpy[i] = mean[i] + amp[i] * sa;
-                d[i] = amp[i] * w[i] * ca;
-                dd[i] = -amp[i] * (w[i] * w[i]) * sa;
-            }
-            double c[9];
-            nc_euler_to_dcm(rpy, c);
-            double cr = cos(rpy[0]), sr = sin(rpy[0]), cp = cos(rpy[1]), sp = sin(rpy[1]);
-            double rd = d[0], pd = d[1], yd = d[2];
-            double w_nb[3] = {d[0] - d[2] * sp, d[1] * cr + d[2] * sr * cp,
-                              -d[1] * sr + d[2] * cr * cp};
-            double w_nb_dot[3] = {
-                dd[0] - dd[2] * sp - yd * pd * cp,
-                dd[1] * cr - pd * rd * sr + dd[2] * sr * cp + yd * rd * cr * cp -
-                    yd * pd * sr * sp,
-                -dd[1] * sr - pd * rd * cr + dd[2] * cr * cp - yd * rd * sr * cp -
-                    yd * pd * cr * sp};
-            double w_in[3], om[3], omd[3], f[3], cx[3];
-            for (int i = 0; i < 3; i++)
-                w_in[i] = c[i] * wc - c[6 + i] * ws;
-            for (int i = 0; i < 3; i++)
-                om[i] = w_nb[i] + w_in[i];
-            cross3(w_nb, w_in, cx);
-            for (int i = 0; i < 3; i++) {
-                omd[i] = w_nb_dot[i] - cx[i];
-                f[i] = c[6 + i] * (-g);
-                sum_w[i] += wts[j] * om[i];
-                sum_f[i] += wts[j] * f[i];
-            }
-            if (j == m - 1)
-                for (int i = 0; i < 3; i++) {
-                    row[i] = rpy[i];
-                    row[3 + i] = 0.0;
-                    row[6 + i] = om[i];
-                    row[9 + i] = omd[i];
-                    row[12 + i] = f[i];
-                }
-        }
-        row[2] = remainder(row[2], TWO_PI);
-        for (int i = 0; i < 3; i++) {
-            row[15 + i] = steps[k] * sum_w[i];
-            row[18 + i] = steps[k] * sum_f[i];
-        }
-    }
 }

@@ -48,8 +48,8 @@ from collections import deque
 
 import numpy as np
 
-from .block import Block, input_, output, parameter
-from .conventions import wrap_angle
+from cosim.models.block import Block, input_, output, parameter
+from cosim.models.conventions import wrap_angle
 
 _V3 = (0.0, 0.0, 0.0)
 # Layout of a buffered sample: v_n (0:3), rpy (3:6), lat, lon, h (6:9).

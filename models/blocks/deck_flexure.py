@@ -29,10 +29,10 @@ represented as ``theta_ddot = -2 beta theta' - beta^2 theta + eta``
 (instantaneous damping terms, step-mean noise). The lever-arm term ``R_0 eta``
 of seed 001 eq. (11) thus appears as ``R_0 theta_ddot`` in the slave's specific
 force at the step end, and its integral over the step is exactly
-``R_0 (theta'(t+h) - theta'(t)) = R_0 dtheta_dot_flex`` (see :mod:`models.lever_arm`).
+``R_0 (theta'(t+h) - theta'(t)) = R_0 dtheta_dot_flex`` (see :mod:`models.blocks.lever_arm`).
 
 Compiled step: with :func:`models.native.library`, the per-step update below is one call
-of ``deck_flexure_step`` (``models/native/kernels.c``, the same arithmetic; the normals are
+of ``deck_flexure_step`` (``models/blocks/deck_flexure.c``, the same arithmetic; the normals are
 still drawn by numpy, :data:`AHEAD_STEPS` steps at a time).
 
 Outputs at the step end: ``theta`` [rad], ``theta_dot`` [rad/s], ``theta_ddot``
@@ -50,9 +50,9 @@ import math
 import numpy as np
 from scipy.linalg import expm
 
-from . import native
-from .block import Block, output, parameter, same_step
-from .constants import ARCMIN
+from cosim.models import native
+from cosim.models.block import Block, output, parameter, same_step
+from cosim.models.constants import ARCMIN
 
 
 def discretize_flexure(beta: float, q: float, h: float) -> tuple[np.ndarray, np.ndarray]:

@@ -57,7 +57,7 @@ The step blocks are drawn :data:`AHEAD_STEPS` at a time (the same numbers in the
 order) and the input-free terms computed for those steps at once, with the same
 arithmetic as step by step. With :func:`models.native.library`, the per-step part (errors
 applied to the inputs, quantisation, outputs) is one call of ``strapdown_imu_step``
-(``models/native/kernels.c``, the same arithmetic).
+(``models/blocks/strapdown_imu.c``, the same arithmetic).
 """
 
 from __future__ import annotations
@@ -69,9 +69,9 @@ from typing import Any
 import numpy as np
 from scipy.signal import lfilter
 
-from . import native
-from .block import Block, input_, output, parameter, same_step
-from .constants import ARCSEC, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MICRO_G, PPM
+from cosim.models import native
+from cosim.models.block import Block, input_, output, parameter, same_step
+from cosim.models.constants import ARCSEC, DEG_PER_HOUR, DEG_PER_SQRT_HOUR, MICRO_G, PPM
 
 UNSET = -1.0  #: start value of the statistical parameters: "take it from the grade"
 

@@ -21,8 +21,9 @@
 #include <string.h>
 
 #include "conventions.h"
+#include "kernel.h"
 
-void transfer_propagate(const double *x, double *out, const double *p, long m, int n,
+KERNEL void transfer_propagate(const double *x, double *out, const double *p, long m, int n,
                         int flexure);
 
 
@@ -103,7 +104,7 @@ static void angle_mean(const double *s, const double *w, int m, int n, int h, do
     mean[h] = nc_wrap_angle(ref + dev);
 }
 
-int transfer_ukf_period(double *x, double *P, const double *Q, const double *R, const double *z,
+KERNEL int transfer_ukf_period(double *x, double *P, const double *Q, const double *R, const double *z,
                         const double *par, const double *Wm, const double *Wc, double spread,
                         int n, int flexure, int heading, double *out)
 {

@@ -39,7 +39,7 @@ import math
 
 import numpy as np
 
-from .block import Block, input_, output, parameter
+from cosim.models.block import Block, input_, output, parameter
 
 _V3 = (0.0, 0.0, 0.0)
 

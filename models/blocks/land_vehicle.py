@@ -21,7 +21,7 @@ force, their exact increments) as in :func:`models.earth.euler_motion_truth`::
 
 Position to first order in the distance driven (``L = L0 + d_N / (R_M + h0)``; error
 ``|d|^2 / R``, 0.3 m after 1.4 km). Increments over a step by composite Simpson on
-``round(h / dt_truth)`` sub-steps, as :class:`models.ship_motion.ShipMotion`: what an
+``round(h / dt_truth)`` sub-steps, as :class:`models.blocks.ship_motion.ShipMotion`: what an
 ideal strapdown IMU measures (no coning or sculling correction). The truth is closed form
 in time, so :data:`AHEAD_STEPS` steps on the master's grid are evaluated in one call (a
 step off that grid starts a new evaluation). A period <= 0 switches
@@ -39,10 +39,10 @@ import math
 
 import numpy as np
 
-from .block import STEP_RTOL, Block, parameter, same_step
-from .constants import DEG
-from .earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
-from .step_paths import simpson_nodes, substeps
+from cosim.models.block import STEP_RTOL, Block, parameter, same_step
+from cosim.models.constants import DEG
+from cosim.models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
+from cosim.models.step_paths import simpson_nodes, substeps
 
 
 class LandVehicle(Block):

@@ -23,7 +23,7 @@ in body axes; uniform gravity over the arm, as in eq. 2)::
 With ``theta'' = -2 beta theta' - beta^2 theta + eta`` the flexure terms are
 exactly eq. (11): ``(...) R_0 theta - R_2 theta + (2 [omega x] R_0 - R_1) theta' + R_0 eta``.
 ``theta''`` at the step end is the DeckFlexure's ``theta_ddot`` (white noise as
-its step mean, see :mod:`models.deck_flexure`); over a step the integral of
+its step mean, see :mod:`models.blocks.deck_flexure`); over a step the integral of
 ``R_0 theta''`` is exactly ``R_0 dtheta_dot_flex``.
 
 Increments (plain integrals over ``[t, t + h]``, no coning/sculling terms)::
@@ -56,7 +56,7 @@ Slave velocity (w.r.t. earth, master NED axes; ``omega_eb_b = omega - C_n_b omeg
     v_n_s = v_n + C_b_n (omega_eb_b x r_p + r_p')
 
 Compiled step: when :func:`models.native.library` gives the compiled kernels, a step is
-one call of ``lever_arm_step`` (``models/native/kernels.c``: the paths, the node loop and
+one call of ``lever_arm_step`` (``models/blocks/lever_arm.c``: the paths, the node loop and
 the step end above, node by node); otherwise the numpy code below. Both give the same
 outputs to rounding (1e-12, ``tests/test_native.py``).
 """
@@ -68,18 +68,18 @@ import math
 
 import numpy as np
 
-from . import native
-from .block import Block, input_, output, parameter
-from .constants import DEG, OMEGA_IE
-from .conventions import (
+from cosim.models import native
+from cosim.models.block import Block, input_, output, parameter
+from cosim.models.constants import DEG, OMEGA_IE
+from cosim.models.conventions import (
     cross,
     dcm_to_euler_3,
     euler_to_dcm,
     euler_to_dcm_3,
     rotvec_to_dcm_and_jacobian,
 )
-from .earth import motion_inputs
-from .step_paths import (
+from cosim.models.earth import motion_inputs
+from cosim.models.step_paths import (
     StepPath,
     hermite_basis,
     path_basis,
@@ -177,7 +177,7 @@ def slave_kinematics_ordered(
     """:func:`slave_kinematics` summed in a fixed order: the compiled step's twin.
 
     The same equations with every sum of products written in index order (:func:`vecmat`,
-    :func:`matvec`, :func:`dot`: no BLAS, no FMA), the order of ``models/native/kernels.c``,
+    :func:`matvec`, :func:`dot`: no BLAS, no FMA), the order of ``models/blocks/lever_arm.c``,
     so that the block's numpy path and its compiled step agree bit for bit. Meant for one
     step's nodes (the block); :func:`slave_kinematics` is the faster form for long stacks.
 
@@ -238,7 +238,7 @@ def dot(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def vecmat(v: np.ndarray, m: np.ndarray) -> np.ndarray:
     """Row vectors times matrices, ``v @ m``, summed in index order (no BLAS, no FMA).
 
-    The elementwise order is the compiled kernels' (``models/native/kernels.c``), so the
+    The elementwise order is the compiled kernels' (``models/blocks/lever_arm.c``), so the
     numpy and compiled lever arms give the same numbers bit for bit.
 
     Parameters
@@ -365,7 +365,7 @@ class LeverArm(Block):
         self.dv_s = np.zeros(3)
 
     def _initialize_native(self) -> None:
-        """Buffers and parameters of the compiled step (layouts: ``models/native/kernels.c``)."""
+        """Buffers and parameters of the compiled step (layouts: ``models/blocks/lever_arm.c``)."""
         self._par = np.concatenate(
             [
                 self._r0,

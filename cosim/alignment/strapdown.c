@@ -22,6 +22,7 @@
 #include <stddef.h>
 
 #include "conventions.h"
+#include "kernel.h"
 
 static void rotvec_dcm(double x, double y, double z, double *r)
 {
@@ -45,7 +46,7 @@ static void rotvec_dcm(double x, double y, double z, double *r)
     r[8] = 1.0 - s2 * (x * x + y * y);
 }
 
-void strapdown_two_sample_step(double *nav, double *sums, const double *dtheta,
+KERNEL void strapdown_two_sample_step(double *nav, double *sums, const double *dtheta,
                                const double *dv, double h, int flags, long every)
 {
     const int transport = flags & 1, vertical = flags & 2, midpoint = flags & 4;
@@ -156,7 +157,7 @@ void strapdown_two_sample_step(double *nav, double *sums, const double *dtheta,
 /* Strapdown.refresh: the latitude-dependent constants at nav[15] (lat) and nav[16] (height),
  * with models.earth.R_M, R_N, gravity and cosim.alignment.nav.earth_rate (same expressions,
  * same order); c: A, E2, OMEGA_IE, GAMMA_E, K_SOMIGLIANA, F, M_RATIO (models.constants). */
-void strapdown_refresh(double *nav, const double *c)
+KERNEL void strapdown_refresh(double *nav, const double *c)
 {
     const double a = c[0], e2 = c[1], w = c[2], gamma_e = c[3], k = c[4], f = c[5], m = c[6];
     const double lat = nav[15], h = nav[16], s = sin(lat);

@@ -3,7 +3,7 @@
 Frames
 ------
 ``n`` is the local geographic frame **ENU** (east, north, up) and ``p`` the paper's
-platform frame (x, y level, z up), as in :mod:`models.hrg_platform_gyro`: at azimuth
+platform frame (x, y level, z up), as in :mod:`models.blocks.hrg_platform_gyro`: at azimuth
 ``A = 0`` the platform axes are east, north, up, and ``A`` is the rotation about up,
 **positive counter-clockwise seen from above**. The platform attitude is the exact
 direction cosine matrix ``C = C_p_n`` (``v_n = C v_p``), written with the paper's
@@ -26,7 +26,7 @@ commanded with the vertical earth rate so that the azimuth follows the earth; at
 indexing of the two-position method) with a trapezoidal rate profile ``alpha(t)``
 limited by ``index_rate`` and ``index_accel``. Each gyro loop nulls the gyro output
 minus its command, so a gyro error ``eps = omega_meas_p - omega_ip_p`` (input
-``omega_err_p``, from :class:`~models.hrg_platform_gyro.HrgPlatformGyro`) turns the
+``omega_err_p``, from :class:`~models.blocks.hrg_platform_gyro.HrgPlatformGyro`) turns the
 platform the other way. The platform's inertial rate, in its own axes, is therefore::
 
     omega_ip_p = [0, 0, (1 + dk_z) Omega sin L + alpha'(t)] - eps
@@ -53,7 +53,7 @@ at 45 deg), and the gyro drifts enter rotated by the (large) azimuth.
 Outputs (values at the end of the step)
 ---------------------------------------
 - ``f_p = C^T [0, 0, g]``: the specific force along the platform axes (input of
-  :class:`~models.platform_accelerometer.PlatformAccelerometer`). Linearised:
+  :class:`~models.blocks.platform_accelerometer.PlatformAccelerometer`). Linearised:
   ``f_x = g (sin A theta_E - cos A theta_N)``, ``f_y = g (cos A theta_E + sin A theta_N)``.
 - ``omega_ip_p`` and ``azimuth``: the inputs of the gyro triad.
 - ``theta_E``, ``theta_N``, ``azimuth``: the true misalignment, for error signals.
@@ -79,10 +79,10 @@ import math
 
 import numpy as np
 
-from .block import Block, input_, output, parameter, same_step
-from .constants import ARCMIN, DEG, OMEGA_IE
-from .conventions import rot_z, rotvec_to_dcm
-from .step_paths import substeps
+from cosim.models.block import Block, input_, output, parameter, same_step
+from cosim.models.constants import ARCMIN, DEG, OMEGA_IE
+from cosim.models.conventions import rot_z, rotvec_to_dcm
+from cosim.models.step_paths import substeps
 
 _V3 = (0.0, 0.0, 0.0)
 

@@ -21,6 +21,8 @@
  */
 #include <math.h>
 
+#include "kernel.h"
+
 #define TM_HISTORY 5
 
 /* transfer_model.relative_rotvecs for one DCM c (row-major); rho (3, written) */
@@ -62,7 +64,7 @@ static void tm_rotvec(const double *c, double *rho)
     rho[0] = f * q1, rho[1] = f * q2, rho[2] = f * q3;
 }
 
-void transfer_master_state(const double *ring, int newest, int k, double h, const double *v,
+KERNEL void transfer_master_state(const double *ring, int newest, int k, double h, const double *v,
                            double lat, double height, const double *consts, double *out)
 {
     const double *c0 = ring + 9 * newest;
@@ -114,7 +116,7 @@ void transfer_master_state(const double *ring, int newest, int k, double h, cons
  *   gyro_drift, gyro_drift_sigma [rad/s].
  * Returns 0, or 1 when P_att is singular (per untouched from 18 on; numpy raises).
  */
-int transfer_period(const double *P, int n, const double *x, const int *idx, const double *bias,
+KERNEL int transfer_period(const double *P, int n, const double *x, const int *idx, const double *bias,
                     double arcmin, double *per, double *out)
 {
     int att = idx[0], nabla = idx[1], eps = idx[2], flex = idx[3];

@@ -29,7 +29,7 @@ algorithm applies the compensations. A period <= 0 switches that axis off.
 
 With :func:`models.native.library` and no linear motion, the look-ahead (truth at every
 node, Simpson sums, step-end outputs) is one call of ``ship_truth_steps``
-(``models/native/kernels.c``, the same arithmetic in the same order: bit-identical here).
+(``models/blocks/ship_motion.c``, the same arithmetic in the same order: bit-identical here).
 
 Defaults follow seed 001: latitude 30 deg, roll 12.5 deg / 12 s, pitch 10 deg / 6 s,
 yaw 5 deg / 8 s about a mean heading of 0, no linear motion.
@@ -42,11 +42,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import native
-from .block import STEP_RTOL, Block, parameter, same_step
-from .constants import DEG, OMEGA_IE
-from .earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth, gravity
-from .step_paths import simpson_nodes, substeps
+from cosim.models import native
+from cosim.models.block import STEP_RTOL, Block, parameter, same_step
+from cosim.models.constants import DEG, OMEGA_IE
+from cosim.models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth, gravity
+from cosim.models.step_paths import simpson_nodes, substeps
 
 
 class ShipMotion(Block):

@@ -24,8 +24,9 @@
 #include <math.h>
 
 #include "conventions.h"
+#include "kernel.h"
 
-int transfer_ukf_period(double *x, double *P, const double *Q, const double *R, const double *z,
+KERNEL int transfer_ukf_period(double *x, double *P, const double *Q, const double *R, const double *z,
                         const double *par, const double *Wm, const double *Wc, double spread,
                         int n, int flexure, int heading, double *out);
 
@@ -35,7 +36,7 @@ int transfer_ukf_period(double *x, double *P, const double *Q, const double *R, 
 #define ATT 4
 #define XI 7
 
-void transfer_feedback(double *nav, const double *x, const double *P, const double *m1, int n,
+KERNEL void transfer_feedback(double *nav, const double *x, const double *P, const double *m1, int n,
                        int flexure, int heading, double *fed)
 {
     double xw[n], mxi[3] = {0.0, 0.0, 0.0}, d_v[3], c[9], rot[9], cn[9], a[9];
@@ -121,7 +122,7 @@ void transfer_feedback(double *nav, const double *x, const double *P, const doub
     }
 }
 
-int transfer_ukf_fed_period(double *x, double *P, const double *Q, const double *R,
+KERNEL int transfer_ukf_fed_period(double *x, double *P, const double *Q, const double *R,
                             const double *z, const double *par, const double *Wm,
                             const double *Wc, double spread, int n, int flexure, int heading,
                             double *out, double *nav, const double *m1, double *fed)

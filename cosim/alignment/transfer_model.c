@@ -21,6 +21,7 @@
 #include <math.h>
 
 #include "conventions.h"
+#include "kernel.h"
 
 /* models.earth.R_M and R_N at latitude lat (same expressions, same order) */
 static double meridian_radius(double lat, double a, double e2)
@@ -68,7 +69,7 @@ static void matvec(const double *m, const double *v, int r, int c, double *o)
 
 /* The nonlinear error model over one period for m stacked states x (m, n) -> out (m, n).
  * n = 19 with the flexure states (flexure = 1), else 13. out must not overlap x. */
-void transfer_propagate(const double *x, double *out, const double *p, long m, int n,
+KERNEL void transfer_propagate(const double *x, double *out, const double *p, long m, int n,
                         int flexure)
 {
     const double T = p[0], lat_h = p[1], height = p[2];

@@ -19,6 +19,7 @@
 #include <math.h>
 
 #include "conventions.h"
+#include "kernel.h"
 
 
 /* o = A^T B (row-major 3x3) */
@@ -37,7 +38,7 @@ static void tp_dcm_to_euler(const double *c, double *rpy)
     rpy[2] = atan2(c[3], c[0]);
 }
 
-double transfer_publish(const double *in, const double *c_nav, int mode, const double *per,
+KERNEL double transfer_publish(const double *in, const double *c_nav, int mode, const double *per,
                         double *c_m, double *out)
 {
     const double *att_t = per, *p_att = per + 9, *p_inv = per + 18;

@@ -37,11 +37,11 @@ import math
 
 import numpy as np
 
-from .block import Block, parameter
-from .constants import DEG
-from .earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
-from .gauss_markov import discretize_gm2
-from .step_paths import substeps
+from cosim.models.block import Block, parameter
+from cosim.models.blocks.gauss_markov import discretize_gm2
+from cosim.models.constants import DEG
+from cosim.models.earth import MOTION_OUTPUTS, ImuTruth, euler_motion_truth
+from cosim.models.step_paths import substeps
 
 
 def _omega(period: np.ndarray) -> np.ndarray:

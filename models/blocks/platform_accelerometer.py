@@ -1,6 +1,6 @@
 """Pulse-output accelerometer triad on a gimballed platform (seed 000, eq. 2).
 
-Platform frame p as in :mod:`models.hrg_platform_gyro` (x, y level, z up; east,
+Platform frame p as in :mod:`models.blocks.hrg_platform_gyro` (x, y level, z up; east,
 north, up at azimuth 0). Input: the true specific force ``A = f_p`` along the
 platform axes [m/s2], held constant over the step.
 
@@ -34,8 +34,8 @@ import math
 
 import numpy as np
 
-from .block import Block, input_, output, parameter
-from .hrg_platform_gyro import mounting_matrix
+from cosim.models.block import Block, input_, output, parameter
+from cosim.models.blocks.hrg_platform_gyro import mounting_matrix
 
 _V3 = (0.0, 0.0, 0.0)
 

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from .block import Block, input_, output, parameter
+from cosim.models.block import Block, input_, output, parameter
 
 
 class FirstOrderSensor(Block):

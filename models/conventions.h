@@ -8,6 +8,17 @@
 
 #define NC_PI 3.141592653589793 /* math.pi */
 
+/* models.conventions.cross: o = a x b (o may alias a or b) */
+static inline void nc_cross3(const double *a, const double *b, double *o)
+{
+    double o0 = a[1] * b[2] - a[2] * b[1];
+    double o1 = a[2] * b[0] - a[0] * b[2];
+    double o2 = a[0] * b[1] - a[1] * b[0];
+    o[0] = o0;
+    o[1] = o1;
+    o[2] = o2;
+}
+
 /* o = a b, 3x3 row-major (o distinct from a and b), summed k = 0, 1, 2 */
 static inline void nc_matmul3(const double *a, const double *b, double *o)
 {

@@ -52,11 +52,11 @@ import math
 
 import numpy as np
 
-from .block import Block, output, parameter
-from .constants import DEG
-from .conventions import cross, dcm_to_euler, euler_to_dcm, vec3
-from .earth import motion_inputs
-from .step_paths import StepPath, simpson_nodes, substeps
+from cosim.models.block import Block, output, parameter
+from cosim.models.constants import DEG
+from cosim.models.conventions import cross, dcm_to_euler, euler_to_dcm, vec3
+from cosim.models.earth import motion_inputs
+from cosim.models.step_paths import StepPath, simpson_nodes, substeps
 
 
 class Turntable(Block):
