@@ -86,3 +86,16 @@ def cli(tmp_path: Path):
         return CliResult(proc.returncode, proc.stdout, proc.stderr)
 
     return run
+
+
+#: Timeout of a slow test that states none [s]. The global 600 s (pyproject) guards the
+#: default suite against a hang; the slow acceptance campaigns (50-100 runs of 100-600 s)
+#: take 5-40 minutes on an idle 2-core machine and several times that on a shared one.
+SLOW_TIMEOUT = 4 * 3600
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Give every ``slow`` test without a ``timeout`` marker :data:`SLOW_TIMEOUT`."""
+    for item in items:
+        if item.get_closest_marker("slow") and not item.get_closest_marker("timeout"):
+            item.add_marker(pytest.mark.timeout(SLOW_TIMEOUT))

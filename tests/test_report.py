@@ -134,13 +134,22 @@ def test_html_is_one_offline_file_with_every_plot_embedded(reports) -> None:
         for key in ("src", "href"):
             if key in attrs:
                 assert attrs[key].startswith("data:image/png;base64," if key == "src" else "#")
-    images = [a["src"] for t, a in page.tags if t == "img"]
-    assert len(images) == len(campaign.requirements)  # one figure per requirement
-    for src in images:
-        png = base64.b64decode(src.split(",", 1)[1], validate=True)
+    images = [a for t, a in page.tags if t == "img"]
+    calibration = [a for a in images if a["alt"].endswith("sigma calibration over time")]
+    judged = [c for c in data_calibration(paths) if c["consistent"] is not None]
+    # one figure per requirement, one more per requirement whose sigma was calibrated
+    assert len(images) == len(campaign.requirements) + len(judged)
+    assert len(calibration) == len(judged) >= 1
+    for attrs in images:
+        png = base64.b64decode(attrs["src"].split(",", 1)[1], validate=True)
         assert png[:8] == b"\x89PNG\r\n\x1a\n"
         width, height = struct.unpack(">II", png[16:24])
-        assert width >= 800 and height >= 500
+        assert width >= 800 and height >= (250 if attrs in calibration else 500)
+
+
+def data_calibration(paths: dict) -> list[dict]:
+    """The report's ``consistency.calibration`` (cosim.verify.calibration)."""
+    return json.loads(paths["json"].read_text())["consistency"]["calibration"]
 
 
 def test_html_lists_every_requirement_with_its_verdict(reports) -> None:

@@ -18,6 +18,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 
+from cosim.verify.calibration import calibration_lines, sigma_calibration  # noqa: E402
 from cosim.verify.consistency import (  # noqa: E402
     DEFAULT_FALSE_ALARM,
     ConsistencyRequirement,
@@ -167,7 +168,9 @@ def consistency_section(campaign: Any) -> dict[str, Any]:
     dict
         ``false_alarm_per_run`` and ``signals``: column -> ``runs`` (judged),
         ``flagged``, ``p_value``, ``verdict`` (``"inconsistent"``, ``"no evidence"`` or
-        ``"not judged"``), ``text`` (one sentence) and ``examples`` (run, message).
+        ``"not judged"``), ``text`` (one sentence) and ``examples`` (run, message);
+        ``calibration``: :func:`cosim.verify.calibration.sigma_calibration` (the
+        requirements' error / sigma across the runs).
     """
     per: dict[str, dict[str, Any]] = {}
     for rec in campaign.records:
@@ -205,7 +208,7 @@ def consistency_section(campaign: Any) -> dict[str, Any]:
             )
     for e in per.values():
         e.pop("why", None)
-    return {"false_alarm_per_run": a, "signals": per}
+    return {"false_alarm_per_run": a, "signals": per, "calibration": sigma_calibration(campaign)}
 
 
 def consistency_lines(section: dict[str, Any]) -> list[str]:
@@ -221,11 +224,14 @@ def consistency_lines(section: dict[str, Any]) -> list[str]:
     list of str
         Empty when no NIS/NEES output is recorded.
     """
+    lines = calibration_lines(section.get("calibration", []))
     if not section["signals"]:
-        return []
-    return ["filter consistency (docs/consistency.md):"] + [
-        f"  {column}: {e['text']}" for column, e in section["signals"].items()
-    ]
+        return lines
+    return (
+        ["filter consistency (docs/consistency.md):"]
+        + [f"  {column}: {e['text']}" for column, e in section["signals"].items()]
+        + lines
+    )
 
 
 def consistency_overview_html(section: dict[str, Any]) -> str:

@@ -32,6 +32,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 from cosim.verify.budget import budget_html, budget_section  # noqa: E402
+from cosim.verify.calibration import calibration_html  # noqa: E402
 from cosim.verify.campaign import Campaign  # noqa: E402
 from cosim.verify.consistency_report import (  # noqa: E402
     consistency_figure,
@@ -575,8 +576,9 @@ def write_html(campaign: Campaign, path: Path, data: dict[str, Any] | None = Non
         )
     parts.append("</tbody></table>")
     parts.append(consistency_overview_html(data["consistency"]))
+    calibrated = {c["id"]: c for c in data["consistency"].get("calibration", [])}
 
-    for req, v in zip(campaign.requirements, campaign.verdicts, strict=True):
+    for k, (req, v) in enumerate(zip(campaign.requirements, campaign.verdicts, strict=True)):
         signal = req.signal + (f" − {req.minus}" if req.minus else "")
         signal += f" − reference {req.reference.text}" if req.reference else ""
         interval = ""
@@ -599,6 +601,7 @@ def write_html(campaign: Campaign, path: Path, data: dict[str, Any] | None = Non
             f'histogram" src="data:image/png;base64,{requirement_figure(campaign, req, v)}">'
             "</figure>",
             consistency_html(campaign, req),
+            calibration_html(campaign, k, calibrated[req.id]) if req.id in calibrated else "",
             budget_html(data.get("budgets", {}).get(req.id)),
             "</section>",
         ]
