@@ -51,6 +51,7 @@ from cosim.blocks import BlockCallError, BlockHost, BlockTerminated
 from cosim.clock import CLOCKS, EXACT, Clock
 from cosim.errors import ScenarioError, SimulationError
 from cosim.results import RunResult
+from cosim.typed_values import TypedExchange, is_typed_link
 from cosim.variables import REAL, Variable
 
 GAUSS_SEIDEL = "gauss-seidel"
@@ -369,8 +370,12 @@ class Master:
         self._start_values = np.array(start_values)
         self._inputs: dict[str, tuple[list[int], np.ndarray, np.ndarray]] = {}
         into: dict[str, list[Connection]] = {name: [] for name in self.order}
+        typed = [c for c in sys_.connections if is_typed_link(sys_.blocks, c)]
+        self._typed_links = TypedExchange(sys_.blocks, typed)  # not Float64: typed_values
+        typed_set = set(typed)
         for c in sys_.connections:
-            into[c.dst_block].append(c)
+            if c not in typed_set:
+                into[c.dst_block].append(c)
         for name in self.order:
             host = sys_.blocks[name]
             # in value-reference order (vector elements in order: few slice copies); the
@@ -512,12 +517,22 @@ class Master:
         # its tolist for the finiteness check, the variables). Readers and writers are bound
         # here, for this run (a reset makes new in-process instances).
         plan = []
+        links = self._typed_links  # links of other types than Float64 (cosim.typed_values)
+        links.restart()
+        snap = links.snapshot if jacobi and links.links else None
         for name, k in zip(self.order, rates, strict=True):
             host = sys_.blocks[name]
             in_vrs, in_idx, factor = self._inputs[name]
             out_vrs, part, outs = self._outputs[name]
             unit = bool(np.all(factor == 1.0))
             out = values[part]
+            put, read = links.bind(
+                name,
+                host,
+                host.real_writer(in_vrs) if in_vrs else None,
+                host.real_reader(out_vrs, out) if out_vrs else None,
+                jacobi,
+            )
             plan.append(
                 (
                     name,
@@ -525,8 +540,8 @@ class Master:
                     k,
                     in_idx,
                     None if unit else factor,
-                    host.real_writer(in_vrs) if in_vrs else None,
-                    host.real_reader(out_vrs, out) if out_vrs else None,
+                    put,
+                    read,
                     out,
                     out.tolist,
                     outs,
@@ -597,6 +612,8 @@ class Master:
         for n in range(n_steps):
             if jacobi:
                 source[...] = values
+                if snap is not None:
+                    snap()
             t_n, t_end = t_end, time_of(n + 1)
             for (name, _host, k, in_idx, factor, put, read, out, listed, outs), do_step in steps:
                 if k == 1:

@@ -7,8 +7,7 @@ Format (README, "Scenario files", is the user's reference)::
 
     [master]
     step = "10 ms"              # numbers are SI; strings carry a unit
-    stop = "60 s"
-    start = 0.0                 # optional
+    stop = "60 s"               # start = 0.0 unless given
     coupling = "gauss-seidel"   # or "jacobi"
 
     [blocks.flexure]
@@ -18,8 +17,7 @@ Format (README, "Scenario files", is the user's reference)::
     rate = 1                    # steps every k-th macro step
     parameters = { tau = "300 s", sigma = "2 arcmin", seed = 1 }
     # rename = { "vendor_name" = "our_name[1]" }   # expose FMU variables under our names
-    # role = "imu"                 # the role it fills (fmus/interfaces/): `check` then
-    #                              # refuses a required role input left unconnected
+    # role = "imu"  # the role it fills (fmus/interfaces/): `check` refuses its open inputs
     # unconnected_ok = ["angle"]   # inputs meant to stay on their start values (no warning)
 
     connections = ["flexure.x -> sensor.u"]   # vectors expand: a.v -> b.w wires [1]..[n]
@@ -49,6 +47,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim import limits, provenance, registry
+from cosim.arrays import nested_values
 from cosim.blocks import BlockHost, FmuHost, InProcessHost
 from cosim.errors import FmuError, ScenarioError, UnitError, did_you_mean, shorten
 from cosim.master import GAUSS_SEIDEL, Master, MasterSettings, System
@@ -359,6 +358,7 @@ class Scenario:
                     f"inputs can be set.{tip}",
                     key=key,
                 )
+            raw = nested_values(raw, scalars, lambda m, key=key: self.error(m, key=key))
             try:
                 real = var0.type in (REAL, "Float32")
                 value = to_unit(raw, var0.conversion_unit) if real else raw
