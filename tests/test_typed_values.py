@@ -264,3 +264,22 @@ def test_results_csv_writes_integers_and_booleans_as_integers(
     again = cosim.RunResult.load(csv)
     for n in ("v.g[1]", "e.y_int64", "v.flag", "ss.y[2]"):
         assert again[n].tobytes() == res[n].tobytes()
+
+
+@pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
+def test_in_process_blocks_link_integers_and_booleans(tmp_path: Path, coupling: str) -> None:
+    """In-process blocks (no FMI layer) exchange Integer and Boolean values by the same
+    rule: Gauss-Seidel sees the counter of the same step, Jacobi the one before."""
+    path = tmp_path / "inproc.toml"
+    path.write_text(
+        'connections = ["c.n -> t.m", "c.odd -> t.b"]\n'
+        f'[master]\nstep = 0.5\nstop = 3\ncoupling = "{coupling}"\n'
+        '[blocks.c]\nclass = "typedblocks:Counter"\n[blocks.t]\nclass = "typedblocks:Tally"\n'
+    )
+    res = cosim.run(path)
+    n = res["c.n"]
+    assert n.tolist() == [0, 1, 2, 3, 4, 5, 6]
+    seen = n if coupling == "gauss-seidel" else np.concatenate([[0], n[:-1]])
+    assert res["t.y"].tolist() == (10 * seen + seen % 2).tolist()
+    assert res["t.total"].tolist() == np.concatenate([[0], np.cumsum(seen[1:])]).tolist()
+    assert res.metadata["types"]["t.total"] == "Integer"
