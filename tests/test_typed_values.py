@@ -283,3 +283,17 @@ def test_in_process_blocks_link_integers_and_booleans(tmp_path: Path, coupling: 
     assert res["t.y"].tolist() == (10 * seen + seen % 2).tolist()
     assert res["t.total"].tolist() == np.concatenate([[0], np.cumsum(seen[1:])]).tolist()
     assert res.metadata["types"]["t.total"] == "Integer"
+
+
+def test_a_block_without_typed_links_keeps_the_masters_own_functions() -> None:
+    """The Float64 path is not wrapped where no typed link is (Real-only scenarios run the
+    same per-step code as before typed links existed)."""
+    from cosim.typed_values import TypedExchange
+
+    def put(x: object) -> None: ...
+
+    def read() -> None: ...
+
+    exchange = TypedExchange({}, [])
+    assert exchange.bind("b", None, put, read, jacobi=True) == (put, read)  # type: ignore[arg-type]
+    assert exchange.bind("b", None, None, None, jacobi=False) == (None, None)  # type: ignore[arg-type]
