@@ -32,7 +32,10 @@ takes its inputs from one array (:meth:`BlockHost.real_reader`, :meth:`BlockHost
 per step the master gathers a sink's inputs with one precomputed index array, from the live
 table (Gauss-Seidel) or from the ``t_n`` snapshot (Jacobi), scales them by the connections'
 unit factors only for a block that has a factor other than 1, and checks each block's
-outputs for finiteness right after its step.
+outputs for finiteness right after its step. Links that carry other types (Integer,
+Boolean, Enumeration, String, Float32, the FMI 3 integers) follow the same rule through
+:class:`cosim.typed_values.TypedExchange`, which extends the writer and reader of the
+blocks they touch (docs/coupling.md, "Types and arrays").
 """
 
 from __future__ import annotations
