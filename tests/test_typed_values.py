@@ -6,10 +6,11 @@ FMI 2 type), ``vec3`` (FMI 3: Float64, Float32 and Int32 arrays, an Int8 counter
 Enumeration and a Boolean that change at every step) and ``echo3`` (FMI 3: every FMI 3
 type), ``statespace3`` (FMI 3: a state-space system with array variables). The chain
 
-    stair2 -> echo2 -> vec3 -> echo3,   vec3.z -> statespace3.u  (whole array)
+    stair2 -> echo2 -> vec3 -> echo3 -> echo3,   vec3.z -> statespace3.u  (whole array)
 
-carries Real, Integer, Boolean, Enumeration, String, Float32, Int8 and array links, and
-the widenings Integer -> Float64, Integer -> Int64, Int8 -> Int16, Float32 -> Float64.
+carries Real, Integer, Boolean, Enumeration, String, Float32, Int8, UInt8 and array
+links, and the widenings Integer -> Float64, Integer -> Int64, Int8 -> Int16, Int16 ->
+Int32, UInt16 -> UInt32, UInt32 -> UInt64, Float32 -> Float64.
 It runs under Gauss-Seidel and Jacobi and equals, bit for bit in every recorded column,
 
 - fmpy's FMU wrappers driven by the same coupling rule (``tests/fmpychain.py``, FMI 2
@@ -64,18 +65,25 @@ LINKS = [
     "a.y_bool -> e.u_boolean",
     "a.y_str -> e.u_string",
     "v.z -> ss.u",  # whole arrays of shape (2,)
+    "e.y_uint8 -> e2.u_uint8",
+    "e.y_uint16 -> e2.u_uint32",  # UInt16 -> UInt32
+    "e.y_uint32 -> e2.u_uint64",  # UInt32 -> UInt64
+    "e.y_int16 -> e2.u_int32",  # Int16 -> Int32
+    "e.y_float32 -> e2.u_float32",
 ]
 PARAMETERS = {
     "a": {"u_enum": 2, "p_int": 10, "p_str": "A", "u_real": 0.25},
     "v": {"k": [1.0, 2.0, 3.0], "M": [[1.0, 1.0, 1.0], [0.0, 0.0, 2.0]], "f": [1.0, 3.0]},
+    "e": {"p_uint8": 200, "p_uint16": 60000, "p_uint32": 4000000000},
 }
+BLOCKS = {"s": "stair2", "a": "echo2", "v": "vec3", "e": "echo3", "ss": "statespace3"}
+BLOCKS["e2"] = "echo3"
 
 
 def chain_scenario(tmp_path: Path, fmus: dict[str, Path], coupling: str) -> Path:
-    blocks = {"s": "stair2", "a": "echo2", "v": "vec3", "e": "echo3", "ss": "statespace3"}
     text = f"connections = {LINKS!r}\n[master]\nstep = {STEP}\nstop = {STOP}\n"
     text += f'coupling = "{coupling}"\n'
-    for name, fixture in blocks.items():
+    for name, fixture in BLOCKS.items():
         text += f'\n[blocks.{name}]\nfmu = "{fmus[fixture]}"\n'
         if name in PARAMETERS:
             inner = ", ".join(f"{k} = {v!r}" for k, v in PARAMETERS[name].items())
@@ -84,6 +92,9 @@ def chain_scenario(tmp_path: Path, fmus: dict[str, Path], coupling: str) -> Path
             text += "unconnected_ok = ['u_str']\n"
         if name == "e":
             text += "unconnected_ok = ['u_uint8', 'u_uint16', 'u_uint32', 'u_uint64', 'u_binary']\n"
+        if name == "e2":
+            text += "unconnected_ok = ['u_float64', 'u_int8', 'u_int16', 'u_int64', 'u_uint16',"
+            text += " 'u_uint32', 'u_boolean', 'u_string', 'u_binary', 'u_enum']\n"
     path = tmp_path / f"chain_{coupling}.toml"
     path.write_text(text.replace("'", '"'))
     return path
@@ -106,7 +117,7 @@ def fmpy_parameters() -> dict[str, dict[str, object]]:
     flat = {f"k[{i + 1}]": x for i, x in enumerate(v["k"])}
     flat.update({f"M[{i // 3 + 1},{i % 3 + 1}]": x for i, x in enumerate(sum(v["M"], []))})
     flat.update({f"f[{i + 1}]": x for i, x in enumerate(v["f"])})
-    return {"a": PARAMETERS["a"], "v": flat}
+    return {"a": PARAMETERS["a"], "v": flat, "e": PARAMETERS["e"]}
 
 
 @pytest.mark.parametrize("coupling", ["gauss-seidel", "jacobi"])
@@ -118,9 +129,8 @@ def test_the_typed_chain_equals_fmpy_bit_for_bit(
     types = ours.metadata["types"]
     numeric = [n for n in ours.names[1:] if types[n] not in ("String", "Binary")]
     record = [tuple(n.split(".", 1)) for n in numeric + ["e.y_string"]]
-    order = {"s": "stair2", "a": "echo2", "v": "vec3", "e": "echo3", "ss": "statespace3"}
     theirs = run_chain(
-        {b: fmus[f] for b, f in order.items()},
+        {b: fmus[f] for b, f in BLOCKS.items()},
         fmpy_parameters(),
         fmpy_links(),
         record,
@@ -136,6 +146,8 @@ def test_the_typed_chain_equals_fmpy_bit_for_bit(
     # (Jacobi initialises e with v.level's start value: none declared, so 0, as for Reals)
     assert set(ours["e.y_enum"][1:]) == {1.0, 2.0, 3.0}
     assert ours["e.y_int16"].max() > 0 and ours["e.y_int64"].max() >= 10 + 2
+    assert ours["e2.y_uint8"][-1] == 200 and ours["e2.y_uint32"][-1] == 60000
+    assert ours["e2.y_uint64"][-1] == 4000000000 and ours["e2.y_float32"][-1] > 0
     assert {types[n] for n in ("e.y_float32", "v.g[1]", "e.y_int8", "e.y_enum")} == {
         "Float32",
         "Int8",
