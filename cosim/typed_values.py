@@ -90,7 +90,7 @@ def link_refusal(src: Variable, dst: Variable) -> str | None:
         if t in ("Binary", "Clock"):
             return f"{t} variables are not linked between blocks"
     if a == b:
-        if a == "Enumeration" and tuple(src.items) != tuple(dst.items):
+        if a == "Enumeration" and sorted(src.items) != sorted(dst.items):
             return (
                 f"the two Enumerations have different items "
                 f"({_items(src.items)} and {_items(dst.items)})"

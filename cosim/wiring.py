@@ -51,7 +51,9 @@ def expand(host: BlockHost, name: str) -> list[Variable]:
         elements.append(host.variables[f"{name}[{i}]"])
         i += 1
     if not elements:  # an FMI 3 array of two or more dimensions: A[1,1], A[1,2], ...
-        elements = [v for v in host.variables.values() if v.element and v.element.array == name]
+        elements = [
+            v for v in host.variables.values() if v.element and v.name.split("[", 1)[0] == name
+        ]
     return elements
 
 

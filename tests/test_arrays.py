@@ -63,6 +63,19 @@ def test_the_state_space_fmu_equals_the_closed_form(ss3: Path, tmp_path: Path) -
     assert res["ss.x"][-1, 2] != res["ss.x"][0, 2]  # it moved
 
 
+def test_a_renamed_two_dimensional_array_is_set_under_its_new_name(
+    ss3: Path, tmp_path: Path
+) -> None:
+    path = tmp_path / "renamed.toml"
+    path.write_text(
+        f'[master]\nstep = {H}\nstop = {H}\n[blocks.ss]\nfmu = "{ss3}"\n'
+        'rename = { C = "C_y_x" }\nparameters = { C_y_x = [[2, 0, 0], [0, 0, 0]] }\n'
+        'unconnected_ok = ["u"]\n'
+    )
+    res = cosim.run(path)
+    assert res["ss.y[1]"][0] == 2.0 and res["ss.y[2]"][0] == 0.0  # C x0 with x0 = (1, 0, 0)
+
+
 def test_a_two_dimensional_parameter_in_the_wrong_shape_is_one_line(
     cli, ss3: Path, tmp_path: Path
 ) -> None:

@@ -241,6 +241,8 @@ def test_enumerations_with_other_items_are_refused() -> None:
     b = Variable("b", 2, "Enumeration", "input", "discrete", items=(("low", 1), ("high", 3)))
     assert "different items (low=1, high=2 and low=1, high=3)" in link_refusal(a, b)
     assert link_refusal(a, a) is None
+    reordered = Variable("c", 3, "Enumeration", "input", "discrete", items=a.items[::-1])
+    assert link_refusal(a, reordered) is None  # the items, not their order
 
 
 def test_a_narrowing_link_is_one_line_from_check(cli, fmus: dict[str, Path], tmp_path: Path):
