@@ -35,6 +35,7 @@ import numpy as np
 
 from cosim import models  # noqa: F401  (imported before any FMU, so FMUs of ours reuse this copy)
 from cosim.archives import check_archive
+from cosim.arrays import ArrayAccess
 from cosim.errors import FmuError
 from cosim.units import name_disagreement
 from cosim.unpacked import drop_repeated_path_entries, unpacked_folders
@@ -209,6 +210,20 @@ class BlockHost(abc.ABC):
             One value per reference (float, int, bool or str).
         """
         return list(self._getters[vtype](vrs))
+
+    def set_values(self, vtype: str, vrs: list[int], values: list[Any]) -> None:
+        """Set variables of one type (what typed links write, :mod:`cosim.typed_values`).
+
+        Parameters
+        ----------
+        vtype : str
+            The :attr:`Variable.type`, as in :meth:`get_values`.
+        vrs : list of int
+            Value references.
+        values : list
+            One value per reference (float, int, bool or str).
+        """
+        self._setters[vtype](vrs, values)
 
     @abc.abstractmethod
     def reset(self) -> None:
@@ -501,6 +516,7 @@ class FmuHost(BlockHost):
             self.variables = fmu_variables(md)
         except FmuError as exc:
             raise FmuError(f"block '{name}': FMU '{path}': {exc}") from exc
+        self.arrays = ArrayAccess(self.variables.values())  # FMI 3 array elements
         notes = {name_disagreement(v.unit_def) for v in self.variables.values() if v.unit_def}
         for note in sorted(n for n in notes if n):
             warnings.warn(f"block '{name}': FMU '{path.name}': {note}", UnitWarning, stacklevel=2)
@@ -608,7 +624,9 @@ class FmuHost(BlockHost):
             for vtype in FMI3_NUMERIC_TYPES:
                 self._set[vtype] = getattr(fmu, f"set{vtype}")
                 self._get[vtype] = getattr(fmu, f"get{vtype}")
-        self._getters = self._get
+        if self.arrays:  # element references read and write whole arrays
+            self._get, self._set = self.arrays.accessors(self._get, self._set)
+        self._getters, self._setters = self._get, self._set
         self.fmu = fmu
         self._state = "instantiated"
 
@@ -704,11 +722,13 @@ class FmuHost(BlockHost):
         return _checked(fmu, function, args)
 
     def real_reader(self, vrs: list[int], out: np.ndarray) -> Callable[[], None]:
-        if not out.flags.c_contiguous or out.dtype != np.float64:
+        if not out.flags.c_contiguous or out.dtype != np.float64 or self.arrays.touches(vrs):
             return super().real_reader(vrs, out)
         return self._real_call("Get", vrs, out)
 
     def real_writer(self, vrs: list[int]) -> Callable[[np.ndarray], None]:
+        if self.arrays.touches(vrs):
+            return super().real_writer(vrs)
         values = np.zeros(len(vrs))
         call = self._real_call("Set", vrs, values)
 
@@ -720,6 +740,7 @@ class FmuHost(BlockHost):
 
     def reset(self) -> None:
         self._call("fmi2Reset" if self.fmi_version == "2.0" else "fmi3Reset", self.fmu.reset)
+        self.arrays.reset()
         self._state = "instantiated"
 
     def terminate(self) -> None:

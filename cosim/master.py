@@ -32,7 +32,10 @@ takes its inputs from one array (:meth:`BlockHost.real_reader`, :meth:`BlockHost
 per step the master gathers a sink's inputs with one precomputed index array, from the live
 table (Gauss-Seidel) or from the ``t_n`` snapshot (Jacobi), scales them by the connections'
 unit factors only for a block that has a factor other than 1, and checks each block's
-outputs for finiteness right after its step.
+outputs for finiteness right after its step. Links that carry other types (Integer,
+Boolean, Enumeration, String, Float32, the FMI 3 integers) follow the same rule through
+:class:`cosim.typed_values.TypedExchange`, which extends the writer and reader of the
+blocks they touch (docs/coupling.md, "Types and arrays").
 """
 
 from __future__ import annotations
@@ -51,6 +54,7 @@ from cosim.blocks import BlockCallError, BlockHost, BlockTerminated
 from cosim.clock import CLOCKS, EXACT, Clock
 from cosim.errors import ScenarioError, SimulationError
 from cosim.results import RunResult
+from cosim.typed_values import TypedExchange, is_typed_link
 from cosim.variables import REAL, Variable
 
 GAUSS_SEIDEL = "gauss-seidel"
@@ -369,8 +373,12 @@ class Master:
         self._start_values = np.array(start_values)
         self._inputs: dict[str, tuple[list[int], np.ndarray, np.ndarray]] = {}
         into: dict[str, list[Connection]] = {name: [] for name in self.order}
+        typed = [c for c in sys_.connections if is_typed_link(sys_.blocks, c)]
+        self._typed_links = TypedExchange(sys_.blocks, typed)  # not Float64: typed_values
+        typed_set = set(typed)
         for c in sys_.connections:
-            into[c.dst_block].append(c)
+            if c not in typed_set:
+                into[c.dst_block].append(c)
         for name in self.order:
             host = sys_.blocks[name]
             # in value-reference order (vector elements in order: few slice copies); the
@@ -512,12 +520,22 @@ class Master:
         # its tolist for the finiteness check, the variables). Readers and writers are bound
         # here, for this run (a reset makes new in-process instances).
         plan = []
+        links = self._typed_links  # links of other types than Float64 (cosim.typed_values)
+        links.restart()
+        snap = links.snapshot if jacobi and links.links else None
         for name, k in zip(self.order, rates, strict=True):
             host = sys_.blocks[name]
             in_vrs, in_idx, factor = self._inputs[name]
             out_vrs, part, outs = self._outputs[name]
             unit = bool(np.all(factor == 1.0))
             out = values[part]
+            put, read = links.bind(
+                name,
+                host,
+                host.real_writer(in_vrs) if in_vrs else None,
+                host.real_reader(out_vrs, out) if out_vrs else None,
+                jacobi,
+            )
             plan.append(
                 (
                     name,
@@ -525,8 +543,8 @@ class Master:
                     k,
                     in_idx,
                     None if unit else factor,
-                    host.real_writer(in_vrs) if in_vrs else None,
-                    host.real_reader(out_vrs, out) if out_vrs else None,
+                    put,
+                    read,
                     out,
                     out.tolist,
                     outs,
@@ -597,6 +615,8 @@ class Master:
         for n in range(n_steps):
             if jacobi:
                 source[...] = values
+                if snap is not None:
+                    snap()
             t_n, t_end = t_end, time_of(n + 1)
             for (name, _host, k, in_idx, factor, put, read, out, listed, outs), do_step in steps:
                 if k == 1:

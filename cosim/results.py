@@ -61,13 +61,18 @@ class RunResult:
         return list(self.data.dtype.names)
 
     def __getitem__(self, name: str) -> np.ndarray:
-        """A column ``"block.var"``, shape (n,), or a vector ``"block.vec"``, shape (n, m)."""
+        """A column ``"block.var"``, shape (n,), or a vector ``"block.vec"``, shape (n, m).
+
+        The elements of an FMI 3 array of two or more dimensions come as columns in
+        row-major order (``A[1,1]``, ``A[1,2]``, ...).
+        """
         if name in self.data.dtype.names:
             return self.data[name]
         cols = [c for c in self.data.dtype.names if c.startswith(f"{name}[")]
         if not cols:
             raise KeyError(f"no recorded variable '{name}'; recorded: {', '.join(self.names[1:])}")
-        cols.sort(key=lambda c: int(c[len(name) + 1 : -1]))
+        # row-major: x[2] before x[10]; A[1,2] before A[2,1] (FMI 3 arrays)
+        cols.sort(key=lambda c: tuple(int(i) for i in c[len(name) + 1 : -1].split(",")))
         return np.column_stack([self.data[c] for c in cols])
 
     def save(self, out_dir: Path, stem: str = "results") -> tuple[Path, Path]:
@@ -95,7 +100,8 @@ class RunResult:
         else:
             text = {self.names.index(n): values for n, values in self.strings.items()}
             types = self.metadata.get("types", {})
-            whole = {i for i, n in enumerate(self.names) if types.get(n, "Real") != "Real"}
+            floats = ("Real", "Float64", "Float32")
+            whole = {i for i, n in enumerate(self.names) if types.get(n, "Real") not in floats}
             buffer = io.StringIO()
             writer = csv_module.writer(buffer, lineterminator="\n")
             writer.writerow(self.names)

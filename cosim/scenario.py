@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from cosim import provenance, registry
+from cosim.arrays import nested_values
 from cosim.blocks import BlockHost, FmuHost, InProcessHost
 from cosim.errors import FmuError, ScenarioError, UnitError, did_you_mean, shorten
 from cosim.master import Master, System
@@ -189,6 +190,7 @@ class Scenario(ScenarioSpec):
             if not scalars or scalars[0].causality not in SETTABLE:
                 raise self.error(self._not_settable(spec.name, pname, scalars, host), key=key)
             var0 = scalars[0]
+            raw = nested_values(raw, scalars, lambda m, key=key: self.error(m, key=key))
             try:
                 real = var0.type in (REAL, "Float32")
                 value = to_unit(raw, var0.conversion_unit) if real else raw

@@ -29,6 +29,28 @@ REAL = "Real"
 
 
 @dataclass(frozen=True)
+class ArrayElement:
+    """Where a scalar sits in an FMI 3 array variable (:mod:`cosim.arrays`).
+
+    Attributes
+    ----------
+    array : str
+        The array's name.
+    array_vr : int
+        The array's FMI value reference.
+    index : int
+        The element's position in the array, row-major, 0-based.
+    shape : tuple of int
+        The array's shape.
+    """
+
+    array: str
+    array_vr: int
+    index: int
+    shape: tuple[int, ...]
+
+
+@dataclass(frozen=True)
 class Variable:
     """One scalar variable of a block.
 
@@ -59,6 +81,9 @@ class Variable:
     items : tuple of (str, int)
         An Enumeration variable's items (name, value) from its declared type (empty for
         other types, or when the FMU declares none).
+    element : ArrayElement or None
+        For an element of an FMI 3 array: its array and place (then :attr:`vr` is an
+        element reference, not an FMI value reference); None for a scalar.
     """
 
     name: str
@@ -72,6 +97,7 @@ class Variable:
     unit_def: Unit | None = None
     fmu_name: str = ""
     items: tuple[tuple[str, int], ...] = ()
+    element: ArrayElement | None = None
 
     @property
     def conversion_unit(self) -> str | Unit:
@@ -84,8 +110,8 @@ class Variable:
         return self.fmu_name or self.name
 
 
-#: A scalar variable name a scenario can use: ``name`` or ``name[i]``.
-SCALAR_NAME = re.compile(r"^[A-Za-z_]\w*(\[[1-9]\d*\])?$")
+#: A scalar variable name a scenario can use: ``name``, ``name[i]`` or ``name[i,j]``.
+SCALAR_NAME = re.compile(r"^[A-Za-z_]\w*(\[[1-9]\d*(,[1-9]\d*)*\])?$")
 
 
 def apply_rename(
@@ -213,26 +239,29 @@ def fmu_variables(md: Any) -> dict[str, Variable]:
     Raises
     ------
     FmuError
-        An FMI 3 array variable (ins-cosim exchanges scalars) or a bad unit definition.
+        A bad unit definition.
+
+    Notes
+    -----
+    An FMI 3 array variable becomes one scalar per element (:mod:`cosim.arrays`).
     """
+    from cosim.arrays import ELEMENT_VR_BASE, expand_array
+
     units = fmu_units(md)
     out: dict[str, Variable] = {}
+    element_vrs = iter(range(ELEMENT_VR_BASE, ELEMENT_VR_BASE + 2**31))
     for v in md.modelVariables:
-        if getattr(v, "dimensions", None):
-            raise FmuError(
-                f"variable '{v.name}' is an FMI 3 array; expected scalar variables "
-                f"(name[1], name[2], ...)"
-            )
+        array = bool(getattr(v, "dimensions", None))
         unit = v.unit or (v.declaredType.unit if v.declaredType is not None else None)
         vtype = _FMI3_TYPES.get(v.type, v.type)
-        start = v.start
+        start = None if array else v.start
         if start is not None and vtype == "Real":
             start = float(start)
         elif start is not None and vtype == "Integer":
             start = int(start)
         elif start is not None and vtype == "Boolean":
             start = start in (True, "true", "1", 1)
-        out[v.name] = Variable(
+        var = Variable(
             name=v.name,
             vr=v.valueReference,
             type=vtype,
@@ -244,6 +273,8 @@ def fmu_variables(md: Any) -> dict[str, Variable]:
             unit_def=units.get(unit) if unit else None,
             items=_items(v) if vtype == "Enumeration" else (),
         )
+        for e in expand_array(v, var, element_vrs.__next__) if array else [var]:
+            out[e.name] = e
     return out
 
 

@@ -16,13 +16,14 @@ from typing import TYPE_CHECKING, Any
 from cosim.blocks import BlockHost
 from cosim.errors import UnitError, did_you_mean
 from cosim.master import Connection
+from cosim.typed_values import canonical_type, link_refusal, shape_refusal
 from cosim.units import conversion_factor, resolve_unit
-from cosim.variables import REAL, Variable
+from cosim.variables import Variable
 
 if TYPE_CHECKING:
     from cosim.scenario import Scenario
 
-_LINK = re.compile(r"^\s*(\w+)\.([\w\[\]]+)\s*->\s*(\w+)\.([\w\[\]]+)\s*$")
+_LINK = re.compile(r"^\s*(\w+)\.([\w\[\],]+)\s*->\s*(\w+)\.([\w\[\],]+)\s*$")
 
 
 class UnconnectedInputWarning(UserWarning):
@@ -51,6 +52,10 @@ def expand(host: BlockHost, name: str) -> list[Variable]:
     while f"{name}[{i}]" in host.variables:
         elements.append(host.variables[f"{name}[{i}]"])
         i += 1
+    if not elements:  # an FMI 3 array of two or more dimensions: A[1,1], A[1,2], ...
+        elements = [
+            v for v in host.variables.values() if v.element and v.name.split("[", 1)[0] == name
+        ]
     return elements
 
 
@@ -85,6 +90,9 @@ def resolve_connections(scenario: Scenario, hosts: dict[str, BlockHost]) -> list
         sb, sv, db, dv = m.groups()
         src = _endpoint(scenario, hosts, sb, sv, "output", key, text)
         dst = _endpoint(scenario, hosts, db, dv, "input", key, text)
+        mismatch = shape_refusal(src, dst)
+        if mismatch:
+            raise scenario.error(f"'{text}': '{sb}.{sv}' and '{db}.{dv}' {mismatch}", key=key)
         if len(src) != len(dst):
             raise scenario.error(
                 f"'{text}': '{sb}.{sv}' has {len(src)} element(s) but '{db}.{dv}' has "
@@ -92,6 +100,16 @@ def resolve_connections(scenario: Scenario, hosts: dict[str, BlockHost]) -> list
                 key=key,
             )
         for a, b in zip(src, dst, strict=True):
+            why = link_refusal(a, b)
+            if why:
+                raise scenario.error(
+                    f"'{text}': '{sb}.{a.name}' is an output of type {canonical_type(a.type)} "
+                    f"and '{db}.{b.name}' an input of type {canonical_type(b.type)}: {why}; "
+                    f"ins-cosim links equal types and the widenings that keep every value "
+                    f"exact (docs/coupling.md, Types and arrays): convert in a block, or "
+                    f"give the input a constant value under parameters",
+                    key=key,
+                )
             try:
                 factor = conversion_factor(a.conversion_unit, b.conversion_unit)
             except UnitError as exc:
@@ -143,15 +161,6 @@ def _endpoint(
             raise scenario.error(
                 f"'{text}': '{block}.{v.name}' is an {v.causality}, but the {side} side of "
                 f"a connection must be an {causality}",
-                key=key,
-            )
-        if v.type != REAL:
-            kind = "an output" if causality == "output" else "an input"
-            raise scenario.error(
-                f"'{text}': '{block}.{v.name}' is {kind} of type {v.type}; ins-cosim "
-                f"connects Real variables only (Integer, Boolean, Enumeration and String "
-                f"links between blocks are not supported): give the input a constant value "
-                f"under parameters, or list it in unconnected_ok",
                 key=key,
             )
     return scalars

@@ -6,8 +6,9 @@ Reference-FMUs ``Feedthrough``, and ``stair2``, like ``Stair``):
 - ``u_enum = "high"`` sets the item's value (3), as fmpy does with the value itself; a
   name that is not an item is refused by ``check`` in one line listing the items;
 - an Integer -> Integer or Boolean -> Boolean connection (``Stair.counter ->
-  Echo.u_int``) is refused by ``check`` in one line that says why and what to do instead
-  (the master exchanges Real values only), exit 3, no traceback.
+  Echo.u_int``) carries its values (issue 30, item 1; until then it was refused); a link
+  FMI's type rules forbid (Real -> Integer, Integer -> Boolean) is refused by ``check`` in
+  one line naming both variables and their types, exit 3, no traceback.
 """
 
 from __future__ import annotations
@@ -74,26 +75,47 @@ def test_a_wrong_item_name_is_one_line_from_check(cli, echo2: Path, tmp_path: Pa
     assert res.code == 3 and "7 is not an item of the Enumeration 'u_enum'" in res.err
 
 
-@pytest.mark.parametrize(
-    ("link", "what"),
-    [
-        ("s.counter -> e.u_int", "'s.counter' is an output of type Integer"),
-        ("s.odd -> e.u_bool", "'s.odd' is an output of type Boolean"),
-        ("s.ramp -> e.u_int", "'e.u_int' is an input of type Integer"),
-    ],
-)
-def test_a_non_real_link_is_refused_by_check_in_one_line(
-    cli, echo2: Path, stair2: Path, tmp_path: Path, link: str, what: str
-) -> None:
+def links_scenario(tmp_path: Path, stair2: Path, echo2: Path, links: list[str]) -> Path:
     path = tmp_path / "links.toml"
     path.write_text(
-        f'connections = ["{link}"]\n[master]\nstep = "0.5 s"\nstop = "2 s"\n\n'
+        f'connections = {links!r}\n[master]\nstep = "0.5 s"\nstop = "2 s"\n\n'
         f'[blocks.s]\nfmu = "{stair2}"\n\n[blocks.e]\nfmu = "{echo2}"\n'
         f"unconnected_ok = ['u_real', 'u_int', 'u_enum', 'u_bool', 'u_str']\n"
     )
-    res = cli("check", path)
+    return path
+
+
+def test_integer_and_boolean_links_carry_their_values(
+    echo2: Path, stair2: Path, tmp_path: Path
+) -> None:
+    """Issue 30, item 1: ``Stair.counter -> Echo.u_int`` (Integer) and ``Stair.odd ->
+    Echo.u_bool`` (Boolean) flow like Reals (Gauss-Seidel: the sink sees the source's value
+    at the end of the same step); the recording keeps them as integers."""
+    path = links_scenario(tmp_path, stair2, echo2, ["s.counter -> e.u_int", "s.odd -> e.u_bool"])
+    res = cosim.run(path)
+    assert res["e.y_int"].tolist() == res["s.counter"].tolist() == [1, 1, 2, 2, 3]
+    assert res["e.y_bool"].tolist() == res["s.odd"].tolist()  # p_bool = false: y = u
+    assert res.metadata["types"]["e.y_int"] == "Integer"
+
+
+@pytest.mark.parametrize(
+    ("link", "what"),
+    [
+        (
+            "s.ramp -> e.u_int",
+            "'s.ramp' is an output of type Float64 and 'e.u_int' an input "
+            "of type Int32: a Float64 value would be rounded to Int32",
+        ),
+        ("s.counter -> e.u_bool", "FMI has no conversion from Int32 to Boolean"),
+        ("s.odd -> e.u_real", "FMI has no conversion from Boolean to Float64"),
+    ],
+)
+def test_a_link_of_the_wrong_type_is_refused_by_check_in_one_line(
+    cli, echo2: Path, stair2: Path, tmp_path: Path, link: str, what: str
+) -> None:
+    res = cli("check", links_scenario(tmp_path, stair2, echo2, [link]))
     assert res.code == 3 and "Traceback" not in res.err
     line = res.err.strip()
     assert "\n" not in line and "key 'connections[0]'" in line
-    assert what in line and "ins-cosim connects Real variables only" in line
+    assert what in line
     assert "give the input a constant value under parameters" in line
