@@ -58,13 +58,13 @@ class RunResult:
     @property
     def names(self) -> list[str]:
         """Column names, ``time`` first."""
-        return list(self.data.dtype.names)
+        return list(self.data.dtype.names or ())
 
     def __getitem__(self, name: str) -> np.ndarray:
         """A column ``"block.var"``, shape (n,), or a vector ``"block.vec"``, shape (n, m)."""
-        if name in self.data.dtype.names:
+        if name in (self.data.dtype.names or ()):
             return self.data[name]
-        cols = [c for c in self.data.dtype.names if c.startswith(f"{name}[")]
+        cols = [c for c in self.data.dtype.names or () if c.startswith(f"{name}[")]
         if not cols:
             raise KeyError(f"no recorded variable '{name}'; recorded: {', '.join(self.names[1:])}")
         cols.sort(key=lambda c: int(c[len(name) + 1 : -1]))
