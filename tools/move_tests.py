@@ -76,7 +76,6 @@ OVERRIDES: dict[str, tuple[str, str, str]] = {
         "transfer filter",
     ),
     "test_confidence_bounds.py": ("verify", "test_bounds_verdicts.py", "cosim.verify.bounds"),
-    "test_consistency_slow.py": ("acceptance", "", "issue 26, acceptance 6 (slow campaign)"),
     "test_sensor_logs.py": ("sensors", "test_logs.py", "cosim.sensors.logs"),
     "test_ship_lookahead.py": ("models", "test_ship_motion_lookahead.py", "ShipMotion"),
 }
@@ -295,12 +294,41 @@ def plan(root: Path = ROOT) -> list[Move]:
             moves.append(Move(path, tests / modules[module] / name, why))
             continue
         moves.append(Move(path, tests / INTEGRATION / path.name, "imports no project module"))
+    moves = keep_importers_beside(moves)
     names = collections.Counter(m.new.name for m in moves)
     names.update(p.name for p in tests.rglob("test_*.py") if p.parent != tests)
     twice = sorted(n for n, k in names.items() if k > 1)
     if twice:
         raise SystemExit(f"two test files would share a name: {', '.join(twice)}")
     return moves
+
+
+def keep_importers_beside(moves: list[Move]) -> list[Move]:
+    """A test file that imports another test module goes to that module's folder.
+
+    Parameters
+    ----------
+    moves : list of Move
+        The map so far.
+
+    Returns
+    -------
+    list of Move
+        The same map, importers placed beside what they import (pytest's default import
+        mode finds a test module from the folder of the file that imports it).
+    """
+    where = {m.old.stem: m.new.parent for m in moves}
+    out = []
+    for m in moves:
+        tree = ast.parse(m.old.read_text())
+        imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+        imported |= {a.name for n in ast.walk(tree) if isinstance(n, ast.Import) for a in n.names}
+        homes = {where[name] for name in imported if name in where and name != m.old.stem}
+        if len(homes) == 1 and m.new.parent not in homes:
+            (home,) = homes
+            m = Move(m.old, home / m.new.name, f"{m.why}; beside the test module it imports")
+        out.append(m)
+    return out
 
 
 def climb_one_more(source: str) -> str:
@@ -431,6 +459,8 @@ def main(argv: list[str] | None = None) -> int:
     if not args.apply:
         return 0
     before = collected(ROOT) if args.verify else None
+    if before is not None:
+        print(f"collected before the move: {before}")
     apply(moves)
     if before is not None:
         after = collected(ROOT)
