@@ -373,13 +373,14 @@ def text_files(root: Path) -> list[Path]:
 def add_tests_to_pythonpath(pyproject: Path) -> None:
     """Add ``tests`` to pytest's ``pythonpath`` (the helper modules stay there)."""
     text = pyproject.read_text()
-    m = re.search(r"^pythonpath = \[([^\]]*)\]", text, re.MULTILINE)
+    m = re.search(r"^pythonpath = \[([^\]]*)\].*$", text, re.MULTILINE)
     if m is None:
         raise SystemExit(f"{pyproject}: no pythonpath in [tool.pytest.ini_options]")
     if '"tests"' in m.group(1):
         return
     entries = m.group(1).strip()
     new = f'pythonpath = [{entries}, "tests"]' if entries else 'pythonpath = ["tests"]'
+    new += "  # the root (benchmarks/) and tests/ (its helper modules)"
     pyproject.write_text(text[: m.start()] + new + text[m.end() :])
 
 
