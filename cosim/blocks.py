@@ -536,7 +536,9 @@ class FmuHost(BlockHost):
             )
             raise FmuError(f"block '{name}': cannot instantiate FMU '{path}': {exc}{log}") from exc
 
-    def _logger(self, component: Any, instance: bytes, status: int, category: bytes, msg: bytes):
+    def _logger(
+        self, component: Any, instance: bytes, status: int, category: bytes, msg: bytes
+    ) -> None:
         self._log_text(msg)
 
     def _logger3(self, environment: Any, status: int, category: bytes, msg: bytes) -> None:

@@ -58,7 +58,7 @@ class RunResult:
     @property
     def names(self) -> list[str]:
         """Column names, ``time`` first."""
-        return list(self.data.dtype.names)
+        return list(self.data.dtype.names or ())
 
     def __getitem__(self, name: str) -> np.ndarray:
         """A column ``"block.var"``, shape (n,), or a vector ``"block.vec"``, shape (n, m).
@@ -66,9 +66,9 @@ class RunResult:
         The elements of an FMI 3 array of two or more dimensions come as columns in
         row-major order (``A[1,1]``, ``A[1,2]``, ...).
         """
-        if name in self.data.dtype.names:
+        if name in (self.data.dtype.names or ()):
             return self.data[name]
-        cols = [c for c in self.data.dtype.names if c.startswith(f"{name}[")]
+        cols = [c for c in self.data.dtype.names or () if c.startswith(f"{name}[")]
         if not cols:
             raise KeyError(f"no recorded variable '{name}'; recorded: {', '.join(self.names[1:])}")
         # row-major: x[2] before x[10]; A[1,2] before A[2,1] (FMI 3 arrays)

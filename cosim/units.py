@@ -46,7 +46,7 @@ import pint
 from cosim.errors import UnitError, shorten
 from cosim.models.constants import G0, PPM
 
-_REG = pint.UnitRegistry()
+_REG: pint.UnitRegistry[Any] = pint.UnitRegistry()
 _REG.define(f"nav_g = {G0!r} * meter / second ** 2")
 _REG.define("nav_mg = 1e-3 * nav_g")
 _REG.define("nav_ug = 1e-6 * nav_g")

@@ -149,7 +149,7 @@ def fmpy_example(cls: type[Block]) -> str:
     str
         Markdown (no trailing newline).
     """
-    outputs = []
+    outputs: list[str] = []
     for var in cls.variables:
         if var.causality == "output" and len(outputs) < 3:
             names = [f"{var.name}[{i + 1}]" for i in range(len(var.start))] if var.is_vector else []

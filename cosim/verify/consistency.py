@@ -560,7 +560,7 @@ def parse_consistency(
         if key not in table:
             return None
         try:
-            value = float(to_unit(table[key], "s"))
+            value = float(to_unit(table[key], "s"))  # type: ignore[arg-type]
         except (ScenarioError, TypeError, ValueError) as exc:
             raise err(f"expected a time such as '20 s', got {table[key]!r}", key) from exc
         if not math.isfinite(value):

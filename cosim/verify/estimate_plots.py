@@ -74,7 +74,7 @@ def _allowed(ax: plt.Axes, req: Requirement, t0: float, t1: float) -> None:
     ref = r.value * r.to_unit
     ax.axhline(ref, color="#1a7f37", ls="--", lw=1.1, label=f"reference {r.text}")
     half = (req.band if req.criterion == "settling" else req.limit) * r.to_unit
-    style = {"color": "#cf222e", "lw": 1.6}
+    style: dict[str, Any] = {"color": "#cf222e", "lw": 1.6}
     if req.criterion == "value":
         at = t1 if req.at is None else req.at
         ax.vlines(at, ref - half, ref + half, label=f"allowed ±{req.limit:g} {req.unit}", **style)

@@ -32,6 +32,7 @@ import time
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -270,7 +271,7 @@ def plan_requirement(
         else ""
     )
     short = [m for m in used if m.passed is None]
-    base = {"id": req.id, "statistic": req.statistic_text, "confidence": conf}
+    base: dict[str, Any] = {"id": req.id, "statistic": req.statistic_text, "confidence": conf}
     if not used or short:
         why = "every pilot run failed" if not used else f"pilot runs cannot decide: {short[0].note}"
         return RequirementPlan(

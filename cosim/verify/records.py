@@ -111,7 +111,7 @@ class RunRecord:
         """
         if name in self.columns:
             return self.columns[name]
-        parts = []
+        parts: list[np.ndarray] = []
         while f"{name}[{len(parts) + 1}]" in self.columns:
             parts.append(self.columns[f"{name}[{len(parts) + 1}]"])
         if not parts:
@@ -369,7 +369,7 @@ class Histories:
         """A scalar column ``(runs, m)``, or a vector ``"block.vec"`` as ``(runs, m, k)``."""
         if name in self.columns:
             return self.columns[name]
-        parts = []
+        parts: list[np.ndarray] = []
         while f"{name}[{len(parts) + 1}]" in self.columns:
             parts.append(self.columns[f"{name}[{len(parts) + 1}]"])
         if not parts:

@@ -316,7 +316,7 @@ def window_ylim(req: Requirement, curves: dict[str, np.ndarray]) -> tuple[float,
 
 
 def _draw_limits(ax: plt.Axes, req: Requirement, t0: float, t1: float) -> None:
-    style = {"color": "#cf222e", "lw": 1.6}
+    style: dict[str, Any] = {"color": "#cf222e", "lw": 1.6}
     if req.criterion == "bound":
         a = t0 if req.start is None else req.start
         b = t1 if req.until is None else req.until

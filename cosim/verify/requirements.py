@@ -561,7 +561,13 @@ def _parse_one(
     )
 
 
-def _column(table: dict[str, Any], key: str, units: Mapping[str, Any], outputs, err) -> str:  # noqa: ANN001
+def _column(
+    table: dict[str, Any],
+    key: str,
+    units: Mapping[str, Any],
+    outputs: Sequence[str],
+    err: TableError,
+) -> str:
     name = table[key]
     if not isinstance(name, str):
         raise err(f"expected a recorded variable such as 'sensor.m', got {name!r}", key)
@@ -588,7 +594,7 @@ def _column(table: dict[str, Any], key: str, units: Mapping[str, Any], outputs, 
     )
 
 
-def _assume(table: dict[str, Any], statistic: str, stat_text: str, err) -> str | None:  # noqa: ANN001
+def _assume(table: dict[str, Any], statistic: str, stat_text: str, err: TableError) -> str | None:
     """The ``assume`` key: the distribution the rms / mean+ksigma bounds rest on."""
     if statistic not in DEFAULT_ASSUME:
         if "assume" in table:
@@ -618,7 +624,7 @@ def _unit_text(unit: Any) -> str:
     return str(getattr(unit, "text", unit))
 
 
-def _bool(table: dict[str, Any], key: str, default: bool, err) -> bool:  # noqa: ANN001
+def _bool(table: dict[str, Any], key: str, default: bool, err: TableError) -> bool:
     value = table.get(key, default)
     if not isinstance(value, bool):
         raise err(f"expected true or false, got {value!r}", key)

@@ -227,7 +227,7 @@ def _statistic(req: Requirement, used: list[RunMetric]) -> Verdict:
     lim = _fmt(req.limit, unit)
     gamma = float(req.confidence)
     conf = f"{100 * gamma:g} %"
-    common = {"n_used": n, "n_pass": n_pass}
+    common: dict[str, Any] = {"n_used": n, "n_pass": n_pass}
     name = req.statistic_text
     if req.statistic == "max":
         return _max(req, values, common)
@@ -313,7 +313,7 @@ def _bounded(
     upper: float,
     what: str,
     details: dict[str, Any],
-    common: dict[str, int],
+    common: dict[str, Any],
 ) -> Verdict:
     """Three-valued verdict of an estimate with one-sided bounds (rms, mean+ksigma)."""
     unit, n = req.metric_unit, common["n_used"]
@@ -356,7 +356,7 @@ def _bounded(
     )
 
 
-def _max(req: Requirement, values: np.ndarray, common: dict[str, int]) -> Verdict:
+def _max(req: Requirement, values: np.ndarray, common: dict[str, Any]) -> Verdict:
     """``max``: every run must meet the limit.
 
     A run over the limit proves the requirement false (no confidence needed). No number
@@ -421,7 +421,7 @@ def _max(req: Requirement, values: np.ndarray, common: dict[str, int]) -> Verdic
     )
 
 
-def _quantile(req: Requirement, values: np.ndarray, common: dict[str, int]) -> Verdict:
+def _quantile(req: Requirement, values: np.ndarray, common: dict[str, Any]) -> Verdict:
     """``p<q>``: Wilks' order-statistic bounds of the q-th percentile."""
     unit, n = req.metric_unit, common["n_used"]
     lim = _fmt(req.limit, unit)
