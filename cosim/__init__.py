@@ -15,6 +15,7 @@ from pathlib import Path
 from cosim.errors import FmuError, ScenarioError, SimulationError, UnitError, UserError
 from cosim.master import Connection, Master, MasterSettings, System
 from cosim.results import RunResult
+from cosim.runs import make_run
 from cosim.scenario import Scenario, build_master, load_scenario
 
 __all__ = [
@@ -31,12 +32,13 @@ __all__ = [
     "UserError",
     "build_master",
     "load_scenario",
+    "make_run",
     "run",
 ]
 
 
 def run(scenario: Scenario | str | Path, **overrides: object) -> RunResult:
-    """Run a scenario once.
+    """Run a scenario once (:func:`cosim.runs.make_run`).
 
     Parameters
     ----------
@@ -61,8 +63,6 @@ def run(scenario: Scenario | str | Path, **overrides: object) -> RunResult:
     TypeError
         An override that is not a master setting.
     """
-    master = build_master(scenario, **overrides)
-    try:
-        return master.run()
-    finally:
-        master.terminate()
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    return make_run(scenario, overrides=overrides)

@@ -70,18 +70,17 @@ def _echo_running(scenario, info: dict) -> None:  # noqa: ANN001  (a Scenario)
 
 
 def _run_here(scenario, fmu_dir: Path | None, overrides: dict):  # noqa: ANN001, ANN202
-    """Build and run a Scenario in this process; returns its RunResult."""
-    from cosim.scenario import build_master
+    """Build and run a Scenario in this process (:func:`cosim.runs.make_run`)."""
+    from cosim.runs import make_run
 
-    master = build_master(scenario, fmu_dir=fmu_dir, **overrides)
-    _check_roles(scenario, master)
-    s = master.settings
-    info = {"blocks": len(master.system.blocks), "n_steps": s.n_steps}
-    _echo_running(scenario, dict(info, step=s.step, coupling=s.coupling))
-    try:
-        return master.run()
-    finally:
-        master.terminate()
+    def announce(assembly) -> None:  # noqa: ANN001  (a cosim.runs.Assembly)
+        master, built = assembly.master, assembly.scenario  # FMU paths as --fmu-dir set them
+        _check_roles(built, master)
+        s = master.settings
+        info = {"blocks": len(master.system.blocks), "n_steps": s.n_steps}
+        _echo_running(built, dict(info, step=s.step, coupling=s.coupling))
+
+    return make_run(scenario, fmu_dir=fmu_dir, overrides=overrides, before=announce)
 
 
 def _load_scenario(path: Path):  # noqa: ANN202  (a cosim.scenario.Scenario)
@@ -244,11 +243,12 @@ def run(
 def check(scenario: Path, fmu_dir: Path | None) -> None:
     """Validate SCENARIO (a .toml scenario or an .ssp archive: blocks, parameters, units,
     connections) without running it."""
-    from cosim.scenario import build_master
+    from cosim.runs import assemble
 
     try:
         sc = _load_scenario(scenario)
-        master = build_master(sc, fmu_dir=fmu_dir)
+        assembly = assemble(sc, fmu_dir=fmu_dir)  # the recording's size checked too
+        sc, master = assembly.scenario, assembly.master  # FMU paths as --fmu-dir set them
         system = master.system
         _check_roles(sc, master)
         try:
