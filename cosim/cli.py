@@ -9,6 +9,7 @@ message naming the file, key, block or variable, and exits non-zero without a tr
 
 from __future__ import annotations
 
+import copy
 import sys
 import warnings
 from pathlib import Path
@@ -414,10 +415,11 @@ def verify(
             raise UserError("--rerun-crashed reruns the crashed runs of --resume: add --resume")
         # one campaign at a time in the folder, until its reports are written
         click.get_current_context().with_resource(report_folder_lock(report_dir))
-        sc = load_scenario(scenario)
+        sc = load_scenario(scenario)  # the one parse of this process (cosim.runs)
+        shown = copy.deepcopy(sc)
         if fmu_dir is not None:
-            sc.use_fmus(fmu_dir)
-        _echo_sources(sc)
+            shown.use_fmus(fmu_dir)
+        _echo_sources(shown)
         if max_runs is not None and not until_decided:
             raise UserError("--max-runs is the cap of --until-decided: add --until-decided")
         if until_decided:
@@ -427,13 +429,13 @@ def verify(
                 raise UserError("--only-run and --resume cannot be combined")
             if only_runs:  # a run of an until-decided campaign, with its look batch's draws
                 campaign = run_alone(
-                    scenario, report_dir, list(only_runs), runs=runs, max_runs=max_runs,
+                    sc, report_dir, list(only_runs), runs=runs, max_runs=max_runs,
                     seed=seed, workers=workers, cluster=cluster, fmu_dir=fmu_dir,
                     progress=progress,
                 )  # fmt: skip
             else:
                 campaign = run_until_decided(
-                    scenario, report_dir, runs=runs, max_runs=max_runs, seed=seed,
+                    sc, report_dir, runs=runs, max_runs=max_runs, seed=seed,
                     workers=workers, cluster=cluster, fmu_dir=fmu_dir, resume=resume,
                     progress=progress, echo=click.echo,
                 )  # fmt: skip
@@ -442,7 +444,7 @@ def verify(
 
             fixed_campaign_folder(report_dir, resume)
             campaign = run_campaign(
-                scenario,
+                sc,
                 report_dir,
                 runs=runs,
                 seed=seed,

@@ -48,7 +48,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cosim import limits, provenance, registry
+from cosim import limits, parses, provenance, registry
 from cosim.blocks import BlockHost, FmuHost, InProcessHost
 from cosim.errors import FmuError, ScenarioError, UnitError, did_you_mean, shorten
 from cosim.master import GAUSS_SEIDEL, Master, MasterSettings, System
@@ -549,7 +549,7 @@ def load_scenario(path: str | Path) -> Scenario:
         Missing file, malformed TOML, unknown or missing keys, bad values.
     """
     path = Path(path)
-    f = str(path)
+    f = parses.note(path)  # the file's name; the parse is counted
     if not path.is_file():
         raise ScenarioError("file not found; give the path of a scenario .toml file", file=f)
     size = path.stat().st_size

@@ -89,13 +89,13 @@ class LinearModel:
 
 
 # ------------------------------------------------------------------ scenario facts
-def scenario_values(path: str | Path) -> tuple[Any, dict[str, dict[str, Any]]]:
+def scenario_values(path: Any) -> tuple[Any, dict[str, dict[str, Any]]]:
     """The scenario and every block's parameters (file values over the defaults, SI).
 
     Parameters
     ----------
-    path : str or Path
-        Scenario file (built, not run).
+    path : str, Path or Scenario
+        Scenario file, or the scenario as parsed (built, not run).
 
     Returns
     -------
@@ -105,9 +105,9 @@ def scenario_values(path: str | Path) -> tuple[Any, dict[str, dict[str, Any]]]:
     """
     import warnings
 
-    from cosim.scenario import load_scenario
+    from cosim.scenario import Scenario, load_scenario
 
-    scenario = load_scenario(path)
+    scenario = path if isinstance(path, Scenario) else load_scenario(path)
     with warnings.catch_warnings():  # the campaign has shown them (feedback loops, ...)
         warnings.simplefilter("ignore")
         system, _ = scenario.build()
@@ -165,7 +165,7 @@ def linear_model(
     scenario, values = facts if facts is not None else scenario_values(path)
     block = _of_source(scenario, "HrgTwoPositionAlignment")
     if block is not None:
-        return None if requirements is None else HrgBudget(path, requirements, values)
+        return None if requirements is None else HrgBudget(path, requirements, values, scenario)
     block = _of_source(scenario, "SinsStaticAlignment")
     if block is not None:
         return _static_model(scenario, values, block)
@@ -627,7 +627,7 @@ def campaign_budgets(campaign: Any) -> list[dict[str, Any]]:
         One per requirement, in order.
     """
     path = campaign.scenario["file"]
-    facts = scenario_values(path)
+    facts = scenario_values(campaign.source or path)  # as the campaign parsed it
     values = facts[1]
     model = linear_model(path, facts, list(campaign.requirements))
     draws, origin = campaign_draws(campaign, values)
@@ -677,7 +677,12 @@ def campaign_draws(
         for k in draws
     }
     recorded = recorded_draws(
-        campaign.scenario["file"], list(campaign.records), set(draws), stratified, runs, seed
+        campaign.source or campaign.scenario["file"],
+        list(campaign.records),
+        set(draws),
+        stratified,
+        runs,
+        seed,
     )
     draws.update(recorded)
     origin.update({k: RECORDED_METHOD for k in recorded})
