@@ -203,7 +203,7 @@ class Progress(Observer):
         self.every = max(1, self.n_steps // self.updates)
 
     def after_step(self, n: int, t: float) -> object:
-        done = n + 1
-        if done % self.every == 0 or done == self.n_steps:
+        done = n + 1  # 0 after the initialisation: nothing to report yet
+        if done and (done % self.every == 0 or done == self.n_steps):
             self.report(done / self.n_steps, t)
         return None
