@@ -37,13 +37,17 @@ __all__ = [
 ]
 
 
-def run(scenario: Scenario | str | Path, **overrides: object) -> RunResult:
+def run(
+    scenario: Scenario | str | Path, *, fmu_dir: str | Path | None = None, **overrides: object
+) -> RunResult:
     """Run a scenario once (:func:`cosim.runs.make_run`).
 
     Parameters
     ----------
     scenario : Scenario, str or Path
         A loaded scenario or the path of its TOML file.
+    fmu_dir : str or Path, optional
+        Run built-in models from the FMUs in this folder.
     **overrides
         Master settings to override (``step``, ``stop``, ``start``, ``coupling``,
         ``record_every``; see :meth:`Scenario.master_settings`).
@@ -65,4 +69,4 @@ def run(scenario: Scenario | str | Path, **overrides: object) -> RunResult:
     """
     if not isinstance(scenario, Scenario):
         scenario = load_scenario(scenario)
-    return make_run(scenario, overrides=overrides)
+    return make_run(scenario, fmu_dir=fmu_dir, overrides=overrides)

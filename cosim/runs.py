@@ -22,6 +22,7 @@ process (:func:`cosim.scenario.load_scenario`); docs/design/run.md gives the rea
 from __future__ import annotations
 
 import copy
+import dataclasses
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
@@ -103,7 +104,10 @@ def assemble(
         Before anything runs, with the file and key of the problem (a recording too
         large to keep included).
     """
-    own = copy.deepcopy(scenario)
+    # a copy of what building may change (block sources for fmu_dir, the outputs); the
+    # parsed document is shared, read only
+    blocks = {name: dataclasses.replace(spec) for name, spec in scenario.blocks.items()}
+    own = dataclasses.replace(scenario, blocks=blocks)
     if outputs is not None:
         own.outputs = list(outputs)
     master = build_master(own, fmu_dir=fmu_dir, **overrides)
