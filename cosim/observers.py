@@ -64,13 +64,38 @@ class Observer:
         """
 
     def before_block(self, i: int, t: float, initialising: bool) -> None:
-        """Before block ``master.order[i]`` is initialised (at t0) or stepped from ``t`` [s]."""
+        """Before a block is initialised or stepped.
+
+        Parameters
+        ----------
+        i : int
+            The block's index in ``master.order``.
+        t : float
+            The start time (initialising) or the step's start [s].
+        initialising : bool
+            Whether the block is being initialised (else stepped).
+        """
 
     def after_block(self, i: int, t: float) -> None:
-        """After block ``master.order[i]`` published its outputs, valid at ``t`` [s]."""
+        """After a block was initialised or stepped and its outputs read.
+
+        Parameters
+        ----------
+        i : int
+            The block's index in ``master.order``.
+        t : float
+            The time its outputs are valid at [s].
+        """
 
     def after_step(self, n: int, t: float) -> object:
-        """After macro step ``n`` (-1: the initialisation), at ``t = t_{n+1}`` [s].
+        """After a macro step.
+
+        Parameters
+        ----------
+        n : int
+            The macro step (-1: the initialisation).
+        t : float
+            ``t_{n+1}`` [s], the time every block's outputs are valid at.
 
         Returns
         -------
@@ -80,7 +105,13 @@ class Observer:
         return None
 
     def on_stop(self, ending: Ending) -> None:
-        """Once, when the run ends, completed or failed."""
+        """Once, when the run ends, completed, ended early or failed.
+
+        Parameters
+        ----------
+        ending : Ending
+            How it ended.
+        """
 
 
 @dataclass
@@ -115,7 +146,13 @@ class Ending:
 
 @dataclass
 class Hooks:
-    """The overridden hooks of a run's observers, one list per hook (in observer order)."""
+    """The overridden hooks of a run's observers, one list per hook (in observer order).
+
+    Attributes
+    ----------
+    on_start, before_block, after_block, after_step, on_stop : list of callable
+        The observers' bound methods of that hook.
+    """
 
     on_start: list[Callable[..., Any]] = field(default_factory=list)
     before_block: list[Callable[..., Any]] = field(default_factory=list)

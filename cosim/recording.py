@@ -131,7 +131,7 @@ class Recorder(Observer):
         self.ending: Ending | None = None
 
     def on_start(self, master: Any, t0: float) -> None:
-        """Allocate the recording and bind the row writer to this run's value table."""
+        # allocate the recording and bind the row writer to this run's value table
         values = master.values
         every = master.settings.record_every
         self.data = data = np.zeros(self.n_rows, dtype=[(n, "f8") for n in self.names])
@@ -182,11 +182,11 @@ class Recorder(Observer):
         self.after_step = after_step  # type: ignore[method-assign]  # bound per run
 
     def after_step(self, n: int, t: float) -> object:
-        """Write a row after every ``record_every``-th macro step (replaced per run)."""
+        # a row after every record_every-th macro step: bound per run by on_start
         return None
 
     def on_stop(self, ending: Ending) -> None:
-        """Keep how the run ended; after an early end, record the last values."""
+        # keep how the run ended; after an early end, record the last values
         self.ending = ending
         if ending.terminated is not None:
             self.write(ending.time)
