@@ -55,7 +55,7 @@ from cosim.blocks import BlockCallError, BlockHost, BlockTerminated
 from cosim.clock import CLOCKS, EXACT, Clock
 from cosim.errors import ScenarioError, SimulationError
 from cosim.observers import Ending, hooks_of
-from cosim.recording import record_run
+from cosim.recording import MAX_RECORDING_BYTES, record_run  # noqa: F401 (the docs' name)
 from cosim.results import RunResult
 from cosim.variables import REAL, Variable
 
