@@ -15,6 +15,7 @@ from pathlib import Path
 from cosim.errors import FmuError, ScenarioError, SimulationError, UnitError, UserError
 from cosim.master import Connection, Master, MasterSettings, System
 from cosim.results import RunResult
+from cosim.runs import make_run
 from cosim.scenario import Scenario, build_master, load_scenario
 
 __all__ = [
@@ -31,17 +32,22 @@ __all__ = [
     "UserError",
     "build_master",
     "load_scenario",
+    "make_run",
     "run",
 ]
 
 
-def run(scenario: Scenario | str | Path, **overrides: object) -> RunResult:
-    """Run a scenario once.
+def run(
+    scenario: Scenario | str | Path, *, fmu_dir: str | Path | None = None, **overrides: object
+) -> RunResult:
+    """Run a scenario once (:func:`cosim.runs.make_run`).
 
     Parameters
     ----------
     scenario : Scenario, str or Path
         A loaded scenario or the path of its TOML file.
+    fmu_dir : str or Path, optional
+        Run built-in models from the FMUs in this folder.
     **overrides
         Master settings to override (``step``, ``stop``, ``start``, ``coupling``,
         ``record_every``; see :meth:`Scenario.master_settings`).
@@ -61,8 +67,6 @@ def run(scenario: Scenario | str | Path, **overrides: object) -> RunResult:
     TypeError
         An override that is not a master setting.
     """
-    master = build_master(scenario, **overrides)
-    try:
-        return master.run()
-    finally:
-        master.terminate()
+    if not isinstance(scenario, Scenario):
+        scenario = load_scenario(scenario)
+    return make_run(scenario, fmu_dir=fmu_dir, overrides=overrides)

@@ -11,6 +11,7 @@ message naming the file, key, block or variable, and exits non-zero without a tr
 
 from __future__ import annotations
 
+import copy
 import sys
 import warnings
 from pathlib import Path
@@ -72,18 +73,17 @@ def _echo_running(scenario, info: dict) -> None:  # noqa: ANN001  (a Scenario)
 
 
 def _run_here(scenario, fmu_dir: Path | None, overrides: dict):  # noqa: ANN001, ANN202
-    """Build and run a Scenario in this process; returns its RunResult."""
-    from cosim.scenario import build_master
+    """Build and run a Scenario in this process (:func:`cosim.runs.make_run`)."""
+    from cosim.runs import make_run
 
-    master = build_master(scenario, fmu_dir=fmu_dir, **overrides)
-    _check_roles(scenario, master)
-    s = master.settings
-    info = {"blocks": len(master.system.blocks), "n_steps": s.n_steps}
-    _echo_running(scenario, dict(info, step=s.step, coupling=s.coupling))
-    try:
-        return master.run()
-    finally:
-        master.terminate()
+    def announce(assembly) -> None:  # noqa: ANN001  (a cosim.runs.Assembly)
+        master, built = assembly.master, assembly.scenario  # FMU paths as --fmu-dir set them
+        _check_roles(built, master)
+        s = master.settings
+        info = {"blocks": len(master.system.blocks), "n_steps": s.n_steps}
+        _echo_running(built, dict(info, step=s.step, coupling=s.coupling))
+
+    return make_run(scenario, fmu_dir=fmu_dir, overrides=overrides, before=announce)
 
 
 def _load_scenario(path: Path):  # noqa: ANN202  (a cosim.scenario.Scenario)
@@ -246,11 +246,12 @@ def run(
 def check(scenario: Path, fmu_dir: Path | None) -> None:
     """Validate SCENARIO (a .toml scenario or an .ssp archive: blocks, parameters, units,
     connections) without running it."""
-    from cosim.scenario import build_master
+    from cosim.runs import assemble
 
     try:
         sc = _load_scenario(scenario)
-        master = build_master(sc, fmu_dir=fmu_dir)
+        assembly = assemble(sc, fmu_dir=fmu_dir)  # the recording's size checked too
+        sc, master = assembly.scenario, assembly.master  # FMU paths as --fmu-dir set them
         system = master.system
         _check_roles(sc, master)
         try:
@@ -416,10 +417,11 @@ def verify(
             raise UserError("--rerun-crashed reruns the crashed runs of --resume: add --resume")
         # one campaign at a time in the folder, until its reports are written
         click.get_current_context().with_resource(report_folder_lock(report_dir))
-        sc = load_scenario(scenario)
+        sc = load_scenario(scenario)  # the one parse of this process (cosim.runs)
+        shown = copy.deepcopy(sc)
         if fmu_dir is not None:
-            sc.use_fmus(fmu_dir)
-        _echo_sources(sc)
+            shown.use_fmus(fmu_dir)
+        _echo_sources(shown)
         if max_runs is not None and not until_decided:
             raise UserError("--max-runs is the cap of --until-decided: add --until-decided")
         if until_decided:
@@ -429,13 +431,13 @@ def verify(
                 raise UserError("--only-run and --resume cannot be combined")
             if only_runs:  # a run of an until-decided campaign, with its look batch's draws
                 campaign = run_alone(
-                    scenario, report_dir, list(only_runs), runs=runs, max_runs=max_runs,
+                    sc, report_dir, list(only_runs), runs=runs, max_runs=max_runs,
                     seed=seed, workers=workers, cluster=cluster, fmu_dir=fmu_dir,
                     progress=progress,
                 )  # fmt: skip
             else:
                 campaign = run_until_decided(
-                    scenario, report_dir, runs=runs, max_runs=max_runs, seed=seed,
+                    sc, report_dir, runs=runs, max_runs=max_runs, seed=seed,
                     workers=workers, cluster=cluster, fmu_dir=fmu_dir, resume=resume,
                     progress=progress, echo=click.echo,
                 )  # fmt: skip
@@ -444,7 +446,7 @@ def verify(
 
             fixed_campaign_folder(report_dir, resume)
             campaign = run_campaign(
-                scenario,
+                sc,
                 report_dir,
                 runs=runs,
                 seed=seed,

@@ -5,14 +5,16 @@ an ``exit()`` in it ends that process, with no Python exception to catch. Two th
 make such a death a failed run instead of a lost one:
 
 - :class:`StepBoard`, a small block of memory shared with the parent process, where the
-  simulating process notes what it is doing before each block call (:func:`watch`):
+  simulating process notes what it is doing before each block call
+  (:class:`BoardObserver`, an observer of the master):
   loading the blocks, initialising block *b*, stepping block *b* from *t* (the note
   stays until the next block call: reading *b*'s outputs counts as its step). A parent
   that sees its child die reads the last note (:func:`describe_death`): the block and
   time of the crash, the signal or exit code.
 - :func:`run_isolated`: the whole run (loading the FMUs included) in a child process
-  that streams every recorded row to the parent as soon as the master writes it
-  (:meth:`cosim.master.Master.run`, ``on_row``). When the child dies the parent still
+  that streams every recorded row to the parent as soon as the recorder writes it
+  (:class:`cosim.recording.Recorder`, ``on_row``; the run made by
+  :func:`cosim.runs.make_run`). When the child dies the parent still
   has every row recorded before the crash and raises :class:`IsolatedRunError` with the
   partial result, the block, the time and the signal (``ins-cosim run`` writes the
   partial results and exits with 4, as for any failed run).
@@ -34,22 +36,23 @@ import signal
 import struct
 import sys
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from cosim.errors import SimulationError, UserError
+from cosim.observers import Observer
 from cosim.results import RunResult
 
 __all__ = [
+    "BoardObserver",
     "IsolatedRunError",
     "StepBoard",
     "describe_death",
     "describe_exit",
     "run_isolated",
-    "watch",
 ]
 
 #: What the simulating process was doing (the first field of the board).
@@ -139,39 +142,29 @@ class StepBoard:
         return phase, name, time
 
 
-def watch(blocks: Mapping[str, Any], board: StepBoard) -> None:
-    """Make every block note its calls on the board (before each call).
+class BoardObserver(Observer):
+    """Notes every block call of a run on a :class:`StepBoard`, before the call.
 
-    Wraps the ``setup``, ``exit_init`` and ``do_step`` of each block host (instance
-    attributes over the class's methods): about 0.3 µs per block step, a few % of
-    the demo's in-process blocks (10 µs a step), less for FMUs.
+    An observer of the master (:mod:`cosim.observers`): its ``before_block`` packs
+    (phase, block, time) into the board, about 0.3 µs per block step, a few % of the
+    demo's in-process blocks (10 µs a step), less for FMUs. The note stays until the next
+    block call: reading a block's outputs counts as its step.
 
     Parameters
     ----------
-    blocks : mapping of str to BlockHost
-        The system's blocks (``master.system.blocks``).
     board : StepBoard
         Where to note.
     """
-    board.set_names(list(blocks))
-    pack, view = _HEAD.pack_into, board.view
-    for i, host in enumerate(blocks.values()):
-        setup, exit_init, do_step = host.setup, host.exit_init, host.do_step
 
-        def noted_setup(t0: float, parameters: dict, _i: int = i, _f: Any = setup) -> None:
-            pack(view, 0, INITIALISING, _i, t0)
-            _f(t0, parameters)
+    def __init__(self, board: StepBoard) -> None:
+        self.board = board
+        self.pack, self.view = _HEAD.pack_into, board.view
 
-        def noted_exit_init(_i: int = i, _f: Any = exit_init) -> None:
-            phase, _b, t0 = _HEAD.unpack_from(view, 0)
-            pack(view, 0, INITIALISING, _i, t0)
-            _f()
+    def on_start(self, master: Any, t0: float) -> None:
+        self.board.set_names(list(master.order))  # before_block's indices
 
-        def noted_step(t: float, h: float, _i: int = i, _f: Any = do_step) -> None:
-            pack(view, 0, STEPPING, _i, t)
-            _f(t, h)
-
-        host.setup, host.exit_init, host.do_step = noted_setup, noted_exit_init, noted_step
+    def before_block(self, i: int, t: float, initialising: bool) -> None:
+        self.pack(self.view, 0, INITIALISING if initialising else STEPPING, i, t)
 
 
 def describe_exit(exitcode: int | None) -> str:
@@ -272,42 +265,47 @@ def _child(
     loader: Callable[[str], Any] | None = None,
 ) -> None:
     """The isolated process: build, check, run, stream the rows, send the result."""
-    from cosim.scenario import build_master, load_scenario
+    from cosim.runs import Assembly, assemble, make_run
+    from cosim.scenario import load_scenario
 
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C is the parent's business
     warnings.showwarning = _show_warning
     board = StepBoard(raw)
     board.post(LOADING)
+    send = conn.send_bytes
+
+    def on_row(row: np.ndarray) -> None:
+        send(b"R" + row.tobytes())
+
+    def started(assembly: Assembly) -> None:
+        if check is not None:
+            check(assembly.scenario, assembly.master)
+        s, rec = assembly.master.settings, assembly.recorder
+        meta = dict(assembly.master.metadata, types=rec.types)
+        info = {"name": sc.name, "blocks": len(assembly.master.system.blocks)}
+        info.update(n_steps=s.n_steps, step=s.step, coupling=s.coupling)
+        info.update(names=rec.names, metadata=meta)
+        _send(conn, "started", info)
+
     try:
         sc = (loader or load_scenario)(scenario)
-        master = build_master(sc, fmu_dir=fmu_dir, **overrides)
-        if check is not None:
-            check(sc, master)
+        assembly = assemble(sc, fmu_dir=fmu_dir, on_row=on_row, **overrides)
     except UserError as exc:
         _send(conn, "error", str(exc), exc.exit_code)
         return
-    try:
-        watch(master.system.blocks, board)
-        s = master.settings
-        names = ["time"] + [f"{b}.{v}" for b, v in master.record]
-        meta = dict(master.metadata, types=master.types)
-        info = {"name": sc.name, "blocks": len(master.system.blocks), "n_steps": s.n_steps}
-        info.update(step=s.step, coupling=s.coupling, names=names, metadata=meta)
-        _send(conn, "started", info)
-        send = conn.send_bytes
-
-        def on_row(row: np.ndarray) -> None:
-            send(b"R" + row.tobytes())
-
+    try:  # the blocks are terminated after the parent has the outcome
         try:
-            result = master.run(on_row=on_row)
+            result = make_run(assembly, observers=[BoardObserver(board)], before=started)
         except SimulationError as exc:
             _send(conn, "failed", str(exc), exc.block, exc.time, exc.result)
+            return
+        except UserError as exc:  # the check refused the scenario: nothing ran
+            _send(conn, "error", str(exc), exc.exit_code)
             return
         board.post(IDLE)
         _send(conn, "done", result)
     finally:
-        master.terminate()
+        assembly.close()
 
 
 def run_isolated(

@@ -6,7 +6,7 @@ tables is measured before the TOML parser recurses into it, and the parsed docum
 walked once, without recursion, for nesting by dotted keys and for long strings. The
 number of macro steps and the size of the recording are limited by
 :class:`cosim.master.MasterSettings` (:data:`cosim.master.MAX_STEPS`) and
-:class:`cosim.master.Master` (:data:`cosim.master.MAX_RECORDING_BYTES`); the length of a
+:class:`cosim.recording.Recorder` (:data:`cosim.recording.MAX_RECORDING_BYTES`); the length of a
 unit string by :data:`cosim.units.MAX_UNIT_CHARS`.
 """
 

@@ -23,17 +23,20 @@ The coupling rule (README, "The coupling rule", has the diagram):
   initialised with inputs taken from the t0 outputs of its already-initialised sources
   (start values for delayed connections). Jacobi: every block is initialised with its
   sources' start values (the snapshot before anyone initialised), as libcosim does.
-- A block error or a non-finite output stops the run with a :class:`SimulationError`
-  naming block, variable or call and time; the result recorded so far is attached.
+- A block error stops the run with a :class:`SimulationError` naming block, call and
+  time. Everything else watches the stepping (:mod:`cosim.observers`): the recording
+  (:mod:`cosim.recording`, which keeps the rows recorded before a failure), the
+  finiteness check (a non-finite output stops the run naming block, variable, time),
+  progress, the crash step board, early stops.
 
 The exchange: each block's Real outputs are one contiguous part of a float64 value table.
 At the start of a run every host binds a reader that fills its part and a writer that
 takes its inputs from one array (:meth:`BlockHost.real_reader`, :meth:`BlockHost.real_writer`);
 per step the master gathers a sink's inputs with one precomputed index array, from the live
 table (Gauss-Seidel) or from the ``t_n`` snapshot (Jacobi), scales them by the connections'
-unit factors only for a block that has a factor other than 1, and checks each block's
-outputs for finiteness right after its step. Links that carry other types (Integer,
-Boolean, Enumeration, String, Float32, the FMI 3 integers) follow the same rule through
+unit factors only for a block that has a factor other than 1; the observers see each
+block's outputs right after its step. Links that carry other types (Integer, Boolean,
+Enumeration, String, Float32, the FMI 3 integers) follow the same rule through
 :class:`cosim.typed_values.TypedExchange`, which extends the writer and reader of the
 blocks they touch (docs/coupling.md, "Types and arrays").
 """
@@ -44,8 +47,9 @@ import heapq
 import math
 import numbers
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -53,6 +57,8 @@ from cosim.blockchecks import check_blocks
 from cosim.blocks import BlockCallError, BlockHost, BlockTerminated
 from cosim.clock import CLOCKS, EXACT, Clock
 from cosim.errors import ScenarioError, SimulationError
+from cosim.observers import Ending, hooks_of
+from cosim.recording import MAX_RECORDING_BYTES, record_run  # noqa: F401 (the docs' name)
 from cosim.results import RunResult
 from cosim.typed_values import TypedExchange, is_typed_link
 from cosim.variables import REAL, Variable
@@ -62,10 +68,6 @@ JACOBI = "jacobi"
 
 #: The most macro steps a run may have (refused by :class:`MasterSettings`).
 MAX_STEPS = 10**9
-#: The largest recording a run may keep in memory [bytes] (refused by :class:`Master`):
-#: rows (``n_steps // record_every + 1``) x columns (``time`` and every recorded
-#: variable) x 8 bytes.
-MAX_RECORDING_BYTES = 2 * 2**30
 
 
 class CouplingWarning(UserWarning):
@@ -320,7 +322,7 @@ def schedule(
 
 
 class Master:
-    """Steps a :class:`System` with fixed macro steps.
+    """Steps a :class:`System` with fixed macro steps; observers watch (:mod:`cosim.observers`).
 
     Parameters
     ----------
@@ -330,6 +332,18 @@ class Master:
         Step, start, stop, coupling, record interval.
     metadata : dict, optional
         Copied into the result (scenario hash, seeds, ...).
+
+    Attributes
+    ----------
+    order : list of str
+        Stepping order (blocks are indexed by their position in it).
+    output_parts : list of (str, slice, list of Variable)
+        Per block in stepping order: its name, its part of the value table, its Real
+        outputs.
+    slots : dict
+        ``(block, output)`` -> index of its Real output in the value table.
+    values : ndarray or None
+        The live value table of the run in progress (float64, every Real output).
     """
 
     def __init__(
@@ -351,6 +365,7 @@ class Master:
         self.order, self.delayed, self.loops = schedule(names, system.connections)
         if s.coupling == JACOBI:
             self.delayed = list(system.connections)
+        self.values: np.ndarray | None = None
         self._build_tables()
 
     def _build_tables(self) -> None:
@@ -370,6 +385,8 @@ class Master:
                 start_values.append(float(v.start) if v.start is not None else 0.0)
             # each block's outputs are one contiguous part of the value table
             self._outputs[name] = ([v.vr for v in outs], slice(first, len(start_values)), outs)
+        self.slots = slots
+        self.output_parts = [(n, self._outputs[n][1], self._outputs[n][2]) for n in self.order]
         self._start_values = np.array(start_values)
         self._inputs: dict[str, tuple[list[int], np.ndarray, np.ndarray]] = {}
         into: dict[str, list[Connection]] = {name: [] for name in self.order}
@@ -389,54 +406,11 @@ class Master:
                 np.array([slots[(c.src_block, c.src_var)] for c in conns], dtype=int),
                 np.array([c.factor for c in conns]),
             )
-        record = sys_.record
-        if record is None:
-            record = [
-                (b, v.name) for b in sys_.blocks for v in sys_.blocks[b].by_causality("output")
-            ]
-        self.record = record
-        # Real columns come from the value table; the other types (Integer, Boolean,
-        # Enumeration, FMI 3 integers, String) are read from their block when a row is
-        # recorded (they hold between steps like everything else). Columns are 1-based
-        # (0 is the time).
-        self.types = {f"{b}.{v}": sys_.blocks[b].variables[v].type for b, v in record}
-        real = [
-            (i + 1, r)
-            for i, r in enumerate(record)
-            if sys_.blocks[r[0]].variables[r[1]].type == REAL
-        ]
-        self._real_cols = np.array([i for i, _r in real], dtype=int)
-        typed: dict[tuple[str, str], list[tuple[int, int, str]]] = {}
-        for i, (b, v) in enumerate(record, start=1):
-            var = sys_.blocks[b].variables[v]
-            if var.type != REAL:
-                typed.setdefault((b, var.type), []).append((i, var.vr, f"{b}.{v}"))
-        self._typed = [
-            (
-                sys_.blocks[b],
-                vtype,
-                [vr for _i, vr, _n in items],
-                [i for i, _vr, _n in items],
-                [n for *_x, n in items],
-            )
-            for (b, vtype), items in typed.items()
-        ]
-        s = self.settings
-        rows, columns = s.n_steps // s.record_every + 1, len(record) + 1
-        if rows * columns * 8 > MAX_RECORDING_BYTES:
-            raise ScenarioError(
-                f"the recording would hold {rows} rows x {columns} columns = "
-                f"{rows * columns * 8 / 2**30:.3g} GiB, more than the limit of "
-                f"{MAX_RECORDING_BYTES / 2**30:g} GiB; record less often (output.every), "
-                f"fewer variables (output.variables) or a shorter run (master.stop)",
-                key="output.every",
-            )
-        self._record_idx = np.array([slots[r] for _i, r in real], dtype=int)
 
     def warn_loops(self) -> None:
         """Warn (:class:`CouplingWarning`) once per feedback loop broken by a delay.
 
-        :meth:`run` calls it; ``ins-cosim check`` and campaigns call it without running.
+        :meth:`execute` calls it; ``ins-cosim check`` and campaigns call it without running.
         """
         if self.settings.coupling != GAUSS_SEIDEL:
             return
@@ -450,16 +424,27 @@ class Master:
                 stacklevel=3,
             )
 
-    def run(self, on_row: Callable[[np.ndarray], None] | None = None) -> RunResult:
-        """Initialise every block, step to the stop time, and return the recording.
+    @property
+    def rates(self) -> list[int]:
+        """Rate k of each block, in stepping order."""
+        return [self.system.rates.get(name, 1) for name in self.order]
+
+    def run(
+        self,
+        on_row: Callable[[np.ndarray], None] | None = None,
+        observers: Sequence[Any] = (),
+    ) -> RunResult:
+        """Step to the stop time with the recording and the finiteness check watching.
+
+        The same as :func:`cosim.recording.record_run` (``record_run(self, ...)``).
 
         Parameters
         ----------
         on_row : callable, optional
-            Called with each recorded row as soon as it is written: a float64 view,
-            shape (1 + recorded columns,), time [s] first, then the columns in SI units
-            (text columns NaN); copy it to keep it (:mod:`cosim.isolate` streams the rows
-            of an isolated run to its parent this way).
+            Called with each recorded row as soon as it is written
+            (:class:`cosim.recording.Recorder`).
+        observers : sequence, optional
+            More observers (:class:`cosim.observers.Observer`), after those two.
 
         Returns
         -------
@@ -472,72 +457,76 @@ class Master:
             A block failed or produced a non-finite output; ``error.result`` holds the
             recording up to the last completed macro step.
         """
+        return record_run(self, on_row=on_row, observers=observers)
+
+    def execute(self, observers: Sequence[Any] = ()) -> Ending:
+        """Initialise every block and step to the stop time, the observers watching.
+
+        Parameters
+        ----------
+        observers : sequence of Observer
+            What watches the run (:mod:`cosim.observers`); their hooks are called in
+            this order.
+
+        Returns
+        -------
+        Ending
+            Completed at the stop time, or early: a block ended the run
+            (``terminated``) or an observer asked to (``stopped``).
+
+        Raises
+        ------
+        SimulationError
+            A block failed, or an observer failed the run (after every ``on_stop`` saw
+            the failure).
+        """
         self.warn_loops()
         s = self.settings
         sys_ = self.system
-        h, n_steps = s.step, s.n_steps
-        time_of = Clock(s.start, h, s.clock).time  # t_n [s] of macro step n
+        n_steps = s.n_steps
+        time_of = Clock(s.start, s.step, s.clock).time  # t_n [s] of macro step n
         t0 = time_of(0)
-        n_rows = n_steps // s.record_every + 1
-        names = ["time"] + [f"{b}.{v}" for b, v in self.record]
-        data = np.zeros(n_rows, dtype=[(n, "f8") for n in names])
         values = self._start_values.copy()
-        rates = [sys_.rates.get(name, 1) for name in self.order]
+        self.values = values
         jacobi = s.coupling == JACOBI
-        row = 0
+        for f in hooks_of(observers).on_start:
+            f(self, t0)
+        hooks = hooks_of(observers)  # looked up after on_start: it may bind them for this run
+        before_block, after_block = hooks.before_block, hooks.after_block
+        after_step = hooks.after_step
 
-        def result(status: str, error: str = "", ended: dict | None = None) -> RunResult:
-            meta = dict(self.metadata)
-            meta["types"] = self.types
-            if ended is not None:  # a block asked to end the run (not a failure)
-                meta["terminated"] = ended
-            # the seeds in force for this run (campaigns change them between runs)
-            meta["seeds"] = {b: p["seed"] for b, p in sys_.parameters.items() if "seed" in p}
-            meta["master"] = {
-                "step": h,
-                "start": s.start,
-                "stop": s.stop,
-                "coupling": s.coupling,
-                "clock": s.clock,
-                "record_every": s.record_every,
-                "order": self.order,
-                "delayed": [str(c) for c in self.delayed],
-                "rates": dict(zip(self.order, rates, strict=True)),
-            }
-            texts = {n: list(x) for n, x in strings.items()}
-            return RunResult(data[:row].copy(), meta, status=status, error=error, strings=texts)
+        def stop(ending: Ending) -> Ending:
+            for f in hooks.on_stop:
+                f(ending)
+            return ending
 
-        def fail(
-            exc: Exception, name: str, t: float, variable: str | None, call: str | None = None
-        ) -> SimulationError:
-            err = SimulationError(str(exc), block=name, time=t, variable=variable, call=call)
-            err.result = result("failed", str(err))
-            return err
-
-        # Per block, in stepping order: name, host, rate, its inputs (source slots, factors
-        # or None when every factor is 1: x * 1.0 == x; the host's array writer) and its
-        # outputs (the host's reader into the block's part of the value table, that part,
-        # its tolist for the finiteness check, the variables). Readers and writers are bound
-        # here, for this run (a reset makes new in-process instances).
+        # Per block, in stepping order: index, name, host, rate, its inputs (source
+        # slots, factors or None when every factor is 1: x * 1.0 == x; the host's array
+        # writer), its reader into the block's part of the value table, and its do_step
+        # (noting the observers' before_block first, when there are any). Readers and
+        # writers are bound here, for this run (a reset makes new in-process instances).
         plan = []
         links = self._typed_links  # links of other types than Float64 (cosim.typed_values)
         links.restart()
         snap = links.snapshot if jacobi and links.links else None
-        for name, k in zip(self.order, rates, strict=True):
+        for i, (name, k) in enumerate(zip(self.order, self.rates, strict=True)):
             host = sys_.blocks[name]
             in_vrs, in_idx, factor = self._inputs[name]
-            out_vrs, part, outs = self._outputs[name]
+            out_vrs, part, _outs = self._outputs[name]
             unit = bool(np.all(factor == 1.0))
-            out = values[part]
             put, read = links.bind(
                 name,
                 host,
                 host.real_writer(in_vrs) if in_vrs else None,
-                host.real_reader(out_vrs, out) if out_vrs else None,
+                host.real_reader(out_vrs, values[part]) if out_vrs else None,
                 jacobi,
             )
+            do_step = host.do_step
+            if before_block:
+                do_step = _noted(do_step, before_block, i)
             plan.append(
                 (
+                    i,
                     name,
                     host,
                     k,
@@ -545,115 +534,85 @@ class Master:
                     None if unit else factor,
                     put,
                     read,
-                    out,
-                    out.tolist,
-                    outs,
+                    do_step,
                 )
             )
-        # the recording as a plain (rows, columns) float view of the structured array
-        table = data.view(np.float64).reshape(n_rows, len(names))
-        record_idx, real_cols, typed = self._record_idx, self._real_cols, self._typed
-        # columns and value slots as slices where they are consecutive (the usual case:
-        # every output recorded, in order): one slice copy per row
-        real_cols_at: slice | np.ndarray = _as_slice(real_cols)
-        record_from: np.ndarray | None = None
-        record_part = _as_slice(record_idx)
-        if isinstance(record_part, slice):
-            record_from = values[record_part]
-        strings: dict[str, list[str]] = {
-            n: [] for _h, vtype, _v, _c, ns in typed if vtype in ("String", "Binary") for n in ns
-        }
-
-        def write(row: int, t: float) -> None:
-            line = table[row]
-            line[0] = t
-            line[real_cols_at] = values[record_idx] if record_from is None else record_from
-            for host, vtype, vrs, cols, ns in typed:
-                got = host.get_values(vtype, vrs)
-                if vtype in ("String", "Binary"):  # text columns: NaN here, text in the CSV
-                    for n, x in zip(ns, got, strict=True):
-                        if isinstance(x, bytes):  # Binary as hex digits; FMI 2 strings as bytes
-                            x = x.hex() if vtype == "Binary" else x.decode("utf-8", "replace")
-                        strings[n].append(str(x))
-                    line[cols] = np.nan
-                else:  # Integer, Boolean, Enumeration, FMI 3 numbers: exact up to 2**53
-                    line[cols] = [float(x) for x in got]
-            if on_row is not None:
-                on_row(line)
-
-        def check(name: str, out: np.ndarray, outs: list[Variable], t: float) -> None:
-            # called when the sum of out is not finite: an inf or nan in out, or an overflow
-            bad = np.flatnonzero(~np.isfinite(out))
-            if bad.size:
-                i = int(bad[0])
-                raise fail(ValueError(f"output is {out[i]} (not finite)"), name, t, outs[i].name)
-
-        # -- initialisation, in stepping order ----------------------------------
-        before_init = values.copy()
-        for name, host, _k, in_idx, factor, put, read, out, listed, outs in plan:
-            try:
-                host.setup(t0, sys_.parameters.get(name, {}))
-                if put is not None:
-                    x = (before_init if jacobi else values)[in_idx]
-                    put(x if factor is None else x * factor)
-                host.exit_init()
-            except BlockCallError as exc:
-                raise fail(exc, name, t0, None, exc.call) from exc
-            if read is not None:
-                read()
-                total = sum(listed())
-                if total - total != 0.0:  # inf or nan (or a sum that overflowed)
-                    check(name, out, outs, t0)
-        write(0, t0)
-        row = 1
-
-        # -- macro steps ----------------------------------------------------------
-        every = s.record_every
-        source = values.copy() if jacobi else values  # Jacobi: the t_n snapshot
-        steps = [(p, p[1].do_step) for p in plan]  # bound now: after any wrapping
-        t_end = t0
-        for n in range(n_steps):
-            if jacobi:
-                source[...] = values
-                if snap is not None:
-                    snap()
-            t_n, t_end = t_end, time_of(n + 1)
-            for (name, _host, k, in_idx, factor, put, read, out, listed, outs), do_step in steps:
-                if k == 1:
-                    t_begin = t_n  # time_of(n + 1 - k) with k = 1
-                elif (n + 1) % k:
-                    continue
-                else:
-                    t_begin = time_of(n + 1 - k)
-                if put is not None:
-                    x = source[in_idx]
-                    put(x if factor is None else x * factor)
-                # the step ends exactly on t_{n+1} as computed here: h_n = t_{n+1} - t_begin
+        try:
+            # -- initialisation, in stepping order ----------------------------------
+            before_init = values.copy()
+            for i, name, host, _k, in_idx, factor, put, read, _step in plan:
+                for f in before_block:
+                    f(i, t0, True)
                 try:
-                    do_step(t_begin, t_end - t_begin)
-                except BlockTerminated as exc:
-                    # the block asked to end the run: keep its last sample, stop cleanly
-                    # (blocks after it in the order have not stepped to this time)
-                    if read is not None:
-                        read()
-                        total = sum(listed())
-                        if total - total != 0.0:  # inf or nan (or a sum that overflowed)
-                            check(name, out, outs, exc.time)
-                    write(row, exc.time)
-                    row += 1
-                    ended = {"block": name, "time": exc.time, "call": exc.call, "reason": str(exc)}
-                    return result("completed", ended=ended)
+                    host.setup(t0, sys_.parameters.get(name, {}))
+                    if put is not None:
+                        x = (before_init if jacobi else values)[in_idx]
+                        put(x if factor is None else x * factor)
+                    host.exit_init()
                 except BlockCallError as exc:
-                    raise fail(exc, name, t_begin, None, exc.call) from exc
+                    raise _failure(exc, name, t0) from exc
                 if read is not None:
                     read()
-                    total = sum(listed())
-                    if total - total != 0.0:  # inf or nan (or a sum that overflowed)
-                        check(name, out, outs, t_end)
-            if (n + 1) % every == 0:
-                write(row, t_end)
-                row += 1
-        return result("completed")
+                for f in after_block:
+                    f(i, t0)
+            reason = _asked(after_step, -1, t0)
+            if reason is not None:
+                return stop(Ending("completed", t0, stopped={"time": t0, "reason": reason}))
+
+            # -- macro steps ----------------------------------------------------------
+            source = values.copy() if jacobi else values  # Jacobi: the t_n snapshot
+            t_end = t0
+            for n in range(n_steps):
+                if jacobi:
+                    source[...] = values
+                    if snap is not None:
+                        snap()
+                t_n, t_end = t_end, time_of(n + 1)
+                for i, name, _host, k, in_idx, factor, put, read, do_step in plan:
+                    if k == 1:
+                        t_begin = t_n  # time_of(n + 1 - k) with k = 1
+                    elif (n + 1) % k:
+                        continue
+                    else:
+                        t_begin = time_of(n + 1 - k)
+                    if put is not None:
+                        x = source[in_idx]
+                        put(x if factor is None else x * factor)
+                    # the step ends exactly on t_{n+1} as computed here: h_n = t_{n+1} - t_begin
+                    try:
+                        do_step(t_begin, t_end - t_begin)
+                    except BlockTerminated as exc:
+                        # the block asked to end the run: keep its last sample, stop
+                        # cleanly (blocks after it in the order have not stepped to this time)
+                        if read is not None:
+                            read()
+                        for f in after_block:
+                            f(i, exc.time)
+                        ended = {
+                            "block": name,
+                            "time": exc.time,
+                            "call": exc.call,
+                            "reason": str(exc),
+                        }
+                        return stop(Ending("completed", exc.time, terminated=ended))
+                    except BlockCallError as exc:
+                        raise _failure(exc, name, t_begin) from exc
+                    if read is not None:
+                        read()
+                    for f in after_block:
+                        f(i, t_end)
+                asked = None
+                for f in after_step:  # every observer sees the step, then the run may end
+                    why = f(n, t_end)
+                    if why:
+                        asked = [why] if asked is None else [*asked, why]
+                if asked is not None:
+                    stopped = {"time": t_end, "reason": _reason(asked)}
+                    return stop(Ending("completed", t_end, stopped=stopped))
+            return stop(Ending("completed", t_end))
+        except SimulationError as err:
+            stop(Ending("failed", err.time, error=err))
+            raise
 
     def reset(self) -> None:
         """Reset every block (FMI reset) so that :meth:`run` can run again.
@@ -673,8 +632,29 @@ class Master:
                 warnings.warn(f"block '{host.name}': terminate failed: {exc}", stacklevel=2)
 
 
-def _as_slice(index: np.ndarray) -> slice | np.ndarray:
-    """``index`` as a slice when it is consecutive (a view instead of a copy), else itself."""
-    if index.size and np.array_equal(index, np.arange(index[0], index[0] + index.size)):
-        return slice(int(index[0]), int(index[0]) + index.size)
-    return index
+def _failure(exc: BlockCallError, name: str, t: float) -> SimulationError:
+    return SimulationError(str(exc), block=name, time=t, variable=None, call=exc.call)
+
+
+def _noted(
+    do_step: Callable[[float, float], None], notes: list[Callable[..., Any]], i: int
+) -> Callable[[float, float], None]:
+    """``do_step`` that calls the observers' ``before_block(i, t, False)`` first."""
+
+    def step(t: float, h: float) -> None:
+        for f in notes:
+            f(i, t, False)
+        do_step(t, h)
+
+    return step
+
+
+def _asked(after_step: list[Callable[[int, float], object]], n: int, t: float) -> str | None:
+    """Show step ``n`` to every ``after_step``; the reason they give to end the run, or None."""
+    asked = [why for why in [f(n, t) for f in after_step] if why]
+    return _reason(asked) if asked else None
+
+
+def _reason(asked: list[object]) -> str:
+    """The reasons observers gave to end a run, as one text."""
+    return "; ".join("an observer asked" if why is True else str(why) for why in asked)

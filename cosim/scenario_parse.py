@@ -46,7 +46,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from cosim import limits, registry
+from cosim import limits, parses, registry
 from cosim.errors import ScenarioError, UnitError, did_you_mean, shorten
 from cosim.master import GAUSS_SEIDEL, MasterSettings
 from cosim.units import to_unit
@@ -284,7 +284,7 @@ def parse_scenario(path: str | Path) -> ScenarioSpec:
         Missing file, malformed TOML, unknown or missing keys, bad values.
     """
     path = Path(path)
-    f = str(path)
+    f = parses.note(path)  # the file's name; the parse is counted
     if not path.is_file():
         raise ScenarioError("file not found; give the path of a scenario .toml file", file=f)
     size = path.stat().st_size

@@ -42,6 +42,10 @@ CORE = [
     "cosim/errors.py",
     "cosim/provenance.py",
     "cosim/registry.py",
+    "cosim/observers.py",
+    "cosim/recording.py",
+    "cosim/runs.py",
+    "cosim/parses.py",
 ]
 #: The packages above the core, and the command line on top of everything.
 ABOVE = (

@@ -195,9 +195,9 @@ def static_error_model(run: RunFacts) -> ScenarioErrorModel | None:
     """
     from cosim.alignment.nav import euler_rate_matrix_inv
     from cosim.alignment.static_model import FilterTuning, static_lines, table_dcm
+    from cosim.models.blocks.turntable import Turntable
     from cosim.models.constants import DEG_PER_HOUR, MICRO_G
     from cosim.models.conventions import euler_to_dcm_3
-    from cosim.models.blocks.turntable import Turntable
 
     a = run.parameters
     if int(a["init_mode"]) == 2:

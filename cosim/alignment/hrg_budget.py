@@ -33,6 +33,7 @@ This is the filter's :class:`cosim.estimation.error_model.SignalBudgetModel`: th
 
 from __future__ import annotations
 
+import copy
 import math
 import warnings
 from pathlib import Path
@@ -93,7 +94,8 @@ class HrgBudget:
                 "the HRG budget simulates the scenario: give its file and error_signal"
             )
         self.path = Path(run.path)
-        scenario = load_scenario(self.path)
+        scenario = copy.deepcopy(run.scenario) if run.scenario is not None else None
+        scenario = scenario if scenario is not None else load_scenario(self.path)
         self.scenario = scenario
         self.values = run.values
         self.error_signal = run.error_signal
@@ -134,7 +136,7 @@ class HrgBudget:
 
     # ------------------------------------------------------------------ simulations
     def _simulate(self, off: tuple[tuple[str, str], ...]) -> Any:
-        from cosim.scenario import build_master
+        from cosim.runs import make_run
 
         sc = self.scenario
         cols = {self.block, f"{self.accel}.dv_meas_p", f"{self.platform}"}
@@ -143,20 +145,16 @@ class HrgBudget:
                 if c and c.split(".", 1)[0] not in (self.block, self.platform):
                     cols.add(c.split("[", 1)[0])
         sc.outputs = sorted(cols)
+        params: dict[str, dict[str, Any]] = {
+            self.block: {"method": 2},
+            self.accel: {"noise_density": 0.0, **{f"K1[{k}]": 1e8 for k in (1, 2, 3)}},
+            self.gyro: {"noise_density": 0.0},
+        }  # the linear KF, no noise, no quantisation
+        for block, name in off:
+            params.setdefault(block, {})[name] = 0.0
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # the feedback loop (shown by the campaign)
-            master = build_master(sc, record_every=1)
-            try:
-                p = master.system.parameters
-                p.setdefault(self.block, {})["method"] = 2
-                p.setdefault(self.accel, {})["noise_density"] = 0.0
-                p[self.accel].update({f"K1[{k}]": 1e8 for k in (1, 2, 3)})  # no quantisation
-                p.setdefault(self.gyro, {})["noise_density"] = 0.0
-                for block, name in off:
-                    p.setdefault(block, {})[name] = 0.0
-                return master.run()
-            finally:
-                master.terminate()
+            return make_run(sc, overrides={"record_every": 1}, parameters=params)
 
     def _error_at(self, result: Any, req: Any, t: float) -> float:
         tt, e, *_ = self.error_signal(req, result)

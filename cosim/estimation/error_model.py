@@ -102,6 +102,9 @@ class RunFacts:
         ``error_signal(requirement, result) -> (time, error, ...)``: a requirement's
         error over a run [its unit] (the verifier's definition), for a
         :class:`SignalBudgetModel`.
+    scenario : Scenario or None
+        The scenario as the caller parsed it (a model that simulates copies it rather
+        than reading ``path`` again); None: read ``path``.
     """
 
     block: str
@@ -114,6 +117,7 @@ class RunFacts:
     path: Path | None = None
     requirements: Sequence[Any] = ()
     error_signal: Callable[..., tuple[Any, ...]] | None = None
+    scenario: Any = None
 
     @property
     def parameters(self) -> Mapping[str, Any]:

@@ -135,13 +135,13 @@ class BuiltScenario:
     classes: dict[str, type]
 
 
-def scenario_facts(path: str | Path) -> BuiltScenario:
+def scenario_facts(path: Any) -> BuiltScenario:
     """The scenario, every block's parameters (file values over the defaults, SI), classes.
 
     Parameters
     ----------
-    path : str or Path
-        Scenario file (built, not run).
+    path : str, Path or Scenario
+        Scenario file, or the scenario as parsed (built, not run).
 
     Returns
     -------
@@ -149,9 +149,9 @@ def scenario_facts(path: str | Path) -> BuiltScenario:
     """
     import warnings
 
-    from cosim.scenario import load_scenario
+    from cosim.scenario import Scenario, load_scenario
 
-    scenario = load_scenario(path)
+    scenario = path if isinstance(path, Scenario) else load_scenario(path)
     with warnings.catch_warnings():  # the campaign has shown them (feedback loops, ...)
         warnings.simplefilter("ignore")
         system, _ = scenario.build()
@@ -170,13 +170,13 @@ def scenario_facts(path: str | Path) -> BuiltScenario:
     return BuiltScenario(scenario, values, classes)
 
 
-def scenario_values(path: str | Path) -> tuple[Any, dict[str, dict[str, Any]]]:
+def scenario_values(path: Any) -> tuple[Any, dict[str, dict[str, Any]]]:
     """The scenario and every block's parameters (:func:`scenario_facts` without classes).
 
     Parameters
     ----------
-    path : str or Path
-        Scenario file (built, not run).
+    path : str, Path or Scenario
+        Scenario file, or the scenario as parsed (built, not run).
 
     Returns
     -------
@@ -220,6 +220,7 @@ def run_facts(
         path=Path(path),
         requirements=tuple(requirements),
         error_signal=error_signal,
+        scenario=sc,
     )
 
 
@@ -545,7 +546,7 @@ def campaign_budgets(campaign: Any) -> list[dict[str, Any]]:
         One per requirement, in order.
     """
     path = campaign.scenario["file"]
-    facts = scenario_facts(path)
+    facts = scenario_facts(campaign.source or path)  # as the campaign parsed it
     values = facts.values
     model = linear_model(path, facts, list(campaign.requirements))
     draws, origin = campaign_draws(campaign, values)
@@ -595,7 +596,12 @@ def campaign_draws(
         for k in draws
     }
     recorded = recorded_draws(
-        campaign.scenario["file"], list(campaign.records), set(draws), stratified, runs, seed
+        campaign.source or campaign.scenario["file"],
+        list(campaign.records),
+        set(draws),
+        stratified,
+        runs,
+        seed,
     )
     draws.update(recorded)
     origin.update({k: RECORDED_METHOD for k in recorded})

@@ -20,12 +20,13 @@ On disk, under the report folder::
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
 import sys
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -33,7 +34,8 @@ import numpy as np
 
 from cosim.errors import ScenarioError
 from cosim.foreign import foreign_fmus
-from cosim.scenario import Scenario, build_master, load_scenario
+from cosim.runs import assemble
+from cosim.scenario import Scenario, load_scenario
 from cosim.sensors.pairing import check_log_pairs
 from cosim.verify.dispatch import run_jobs
 from cosim.verify.lock import holding_report_folder
@@ -43,7 +45,13 @@ from cosim.verify.requirements import Requirement, Verdict
 from cosim.verify.seeds import SEED_RULE, Stratified, run_seeds, stratified_draws
 from cosim.verify.statistics import judge, overall_exit_code
 from cosim.verify.tables import check_tables
-from cosim.verify.workers import CampaignError, Job, WorkerSpec, expand_parameters
+from cosim.verify.workers import (
+    CampaignError,
+    Job,
+    WorkerSpec,
+    expand_parameters,
+    share_scenario,
+)
 
 __all__ = [
     "Campaign",
@@ -225,6 +233,8 @@ class Campaign:
         software versions.
     execution : dict
         Workers or cluster, runs done in this session, whether it was resumed.
+    source : Scenario or None
+        The scenario as parsed for the campaign (the error budget reads it, not the file).
     """
 
     out_dir: Path
@@ -235,6 +245,7 @@ class Campaign:
     verdicts: list[Verdict]
     provenance: dict[str, Any]
     execution: dict[str, Any]
+    source: Scenario | None = field(default=None, repr=False, compare=False)
 
     @property
     def exit_code(self) -> int:
@@ -331,7 +342,7 @@ class Prepared:
 
 
 def prepare(
-    scenario: str | Path,
+    scenario: str | Path | Scenario,
     fmu_dir: str | Path | None = None,
     *,
     requirements: bool = True,
@@ -339,10 +350,13 @@ def prepare(
 ) -> Prepared:
     """Load a scenario, build it once to check it and collect units and provenance.
 
+    The scenario is parsed here (unless given parsed) and built once; the runs made in
+    this process use the same parse (:func:`cosim.verify.workers.share_scenario`).
+
     Parameters
     ----------
-    scenario : str or Path
-        The scenario file.
+    scenario : str, Path or Scenario
+        The scenario file, or the scenario as parsed (not changed).
     fmu_dir : str or Path, optional
         Run built-in models from these FMUs.
     requirements : bool
@@ -362,12 +376,10 @@ def prepare(
         Bad scenario, requirement or campaign table.
     """
     fmu = None if fmu_dir is None else str(Path(fmu_dir).resolve())
-    sc = load_scenario(scenario)
+    sc = scenario if isinstance(scenario, Scenario) else load_scenario(scenario)
     settings = parse_campaign(sc)
-    probe = load_scenario(sc.path)
-    if outputs is not None:
-        probe.outputs = list(outputs)
-    master = build_master(probe, fmu_dir=fmu)
+    master = assemble(sc, fmu_dir=fmu, outputs=outputs).master
+    share_scenario(sc)
     try:
         master.warn_loops()  # once here; the workers run silently
         check_log_pairs(sc, master)  # two logs in one run (cosim.sensors.pairing)
@@ -435,7 +447,7 @@ def _check_resume(old: dict[str, Any], new: dict[str, Any], out_dir: Path) -> No
 @holding_report_folder("out_dir")  # one campaign at a time in a report folder
 @keeps_workers  # a pool made now: its forkserver imports while prepare() checks
 def run_campaign(
-    scenario: str | Path,
+    scenario: str | Path | Scenario | Prepared,
     out_dir: str | Path,
     *,
     runs: int | None = None,
@@ -454,8 +466,10 @@ def run_campaign(
 
     Parameters
     ----------
-    scenario : str or Path
-        Scenario file with ``[[requirements]]`` (and optionally ``[campaign]``).
+    scenario : str, Path, Scenario or Prepared
+        Scenario file with ``[[requirements]]`` (and optionally ``[campaign]``), parsed
+        or not, or already prepared (:func:`prepare` with this ``fmu_dir``: the looks of
+        ``--until-decided``); parsed once in this process.
     out_dir : str or Path
         Report folder: ``campaign.json``, ``runs/``, ``metrics.csv``.
     runs, seed : int, optional
@@ -495,9 +509,9 @@ def run_campaign(
     CampaignInterrupted
         On Ctrl-C; the finished runs are on disk.
     """
-    prep = prepare(scenario, fmu_dir)
+    prep = scenario if isinstance(scenario, Prepared) else prepare(scenario, fmu_dir)
     fmu = prep.fmu_dir
-    settings = prep.settings
+    settings = dataclasses.replace(prep.settings)  # this campaign's runs, seed, strata
     if runs is not None:
         if runs < 1:
             raise CampaignError(f"--runs must be >= 1, got {runs}")
@@ -624,6 +638,7 @@ def run_campaign(
             "only_runs": manifest.get("only_runs"),
             "fmu_dir": fmu,
         },
+        source=prep.scenario,
     )
     write_metrics_table(campaign, out / METRICS_FILE)
     return campaign

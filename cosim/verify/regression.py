@@ -205,7 +205,7 @@ RECORDED_METHOD = (
 
 
 def recorded_draws(
-    path: str,
+    path: Any,
     records: list[Any],
     skip: set[str],
     stratified: list[Stratified] | None = None,
@@ -223,8 +223,8 @@ def recorded_draws(
 
     Parameters
     ----------
-    path : str
-        The campaign's scenario file.
+    path : str or Scenario
+        The campaign's scenario file, or the scenario as the campaign parsed it.
     records : list of RunRecord
         The runs (their ``seeds``), in order.
     skip : set of str
@@ -244,10 +244,10 @@ def recorded_draws(
     """
     import warnings
 
-    from cosim.scenario import load_scenario
+    from cosim.scenario import Scenario, load_scenario
     from cosim.verify.seeds import stratified_draws
 
-    scenario = load_scenario(path)
+    scenario = path if isinstance(path, Scenario) else load_scenario(path)
     blocks = {
         name: TRUTH_OUTPUTS[spec.source]
         for name, spec in scenario.blocks.items()

@@ -94,13 +94,12 @@ from typing import Any
 
 import numpy as np
 
-from cosim.scenario import load_scenario
+from cosim.scenario import Scenario
 from cosim.verify.campaign import (
     MANIFEST,
     RUNS_DIR,
     Campaign,
     CampaignError,
-    parse_campaign,
     prepare,
     run_campaign,
 )
@@ -449,7 +448,7 @@ def _look_line(j: int, looks: Looks, judged: list[tuple[Requirement, SequentialV
 @holding_report_folder("out_dir")  # one campaign at a time in the folder, over all looks
 @keeps_workers  # one pool for all looks: its processes and built blocks stay
 def run_until_decided(
-    scenario: str | Path,
+    scenario: str | Path | Scenario,
     out_dir: str | Path,
     *,
     runs: int | None = None,
@@ -548,7 +547,7 @@ def run_until_decided(
             campaign = None
         else:
             campaign = run_campaign(
-                scenario,
+                prep,
                 out,
                 runs=n,
                 seed=seed,
@@ -654,7 +653,7 @@ def _finish(
 
 
 def run_alone(
-    scenario: str | Path,
+    scenario: str | Path | Scenario,
     out_dir: str | Path,
     only_runs: Sequence[int],
     *,
@@ -707,12 +706,12 @@ def run_alone(
     ScenarioError, FmuError, CampaignError
         Bad input, or a run beyond the cap.
     """
-    settings = parse_campaign(load_scenario(scenario))
-    first = int(runs) if runs is not None else settings.runs
+    prep = prepare(scenario, fmu_dir)
+    first = int(runs) if runs is not None else prep.settings.runs
     looks = plan_looks(first, max_runs if max_runs is not None else default_max_runs(first))
     fixed_campaign_folder(out_dir, resume=False)
     return run_campaign(
-        scenario, out_dir, runs=looks.cap, seed=seed, workers=workers, cluster=cluster,
+        prep, out_dir, runs=looks.cap, seed=seed, workers=workers, cluster=cluster,
         fmu_dir=fmu_dir, progress=progress, only_runs=list(only_runs), strata=looks.runs,
     )  # fmt: skip
 

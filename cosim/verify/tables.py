@@ -13,6 +13,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from cosim.errors import ScenarioError
+from cosim.recording import recorded_columns
 from cosim.scenario import Scenario
 from cosim.verify.consistency import load_all
 from cosim.verify.estimates import check_truth
@@ -119,11 +120,12 @@ def check_tables(
         ]
         # the unit conversions use (an FMU's own unit definition when it has one)
         units: dict[str, Any] = {"time": "s"}
-        for b, v in master.record:
+        for b, v in recorded_columns(system):
             var = system.blocks[b].variables[v]
             units[f"{b}.{v}"] = getattr(var, "conversion_unit", var.unit)
         descriptions = {
-            f"{b}.{v}": system.blocks[b].variables[v].description for b, v in master.record
+            f"{b}.{v}": system.blocks[b].variables[v].description
+            for b, v in recorded_columns(system)
         }
         reqs = load_all(tables, units, file, outputs, descriptions, settings.on_failure)
         check_windows(reqs, master.settings.start, master.settings.stop, file)

@@ -49,8 +49,10 @@ import numpy as np
 import cosim.blocks
 from cosim.blocks import FmuHost
 from cosim.errors import SimulationError, UserError
-from cosim.isolate import StepBoard, watch
-from cosim.scenario import build_master, load_scenario
+from cosim.isolate import BoardObserver, StepBoard
+from cosim.observers import Observer
+from cosim.runs import assemble, make_run
+from cosim.scenario import Scenario, load_scenario
 from cosim.verify.consistency import ConsistencyRequirement, record_consistency
 from cosim.verify.records import RunRecord, decimation
 from cosim.verify.requirements import Requirement, RunMetric, error_signal, evaluate
@@ -159,28 +161,36 @@ def expand_parameters(
 
 
 class _State:
-    """A worker thread's built system, kept between runs of one campaign."""
+    """A worker thread's built system, kept between runs of one campaign.
+
+    The scenario is the one this process parsed for the campaign (:func:`share_scenario`:
+    runs in the campaign's own process), else read from its file (once per worker
+    process or Dask worker thread).
+    """
 
     def __init__(self, spec: WorkerSpec) -> None:
-        scenario = load_scenario(spec.scenario)
+        scenario = _SHARED.get((spec.scenario, spec.sha256))
+        if scenario is None:
+            scenario = load_scenario(spec.scenario)
         if scenario.sha256 != spec.sha256:
             raise CampaignError(
                 f"the scenario file {spec.scenario} on worker {worker_id()} differs from the "
                 f"one the campaign started with (sha256 {scenario.sha256[:12]} != "
                 f"{spec.sha256[:12]})"
             )
-        if spec.outputs is not None:
-            scenario.outputs = list(spec.outputs)
         self.spec = spec
-        self.master = build_master(
-            scenario, fmu_dir=spec.fmu_dir, stop=spec.stop, record_every=spec.record_every
-        )
-        if _BOARD is not None:  # a local worker process: note each block call
-            watch(self.master.system.blocks, _BOARD)
+        self.assembly = assemble(
+            scenario, fmu_dir=spec.fmu_dir, outputs=spec.outputs, stop=spec.stop,
+            record_every=spec.record_every,
+        )  # fmt: skip
+        self.master = self.assembly.master
+        # what watches every run: the step board of a local worker process, Ctrl-C
+        self.observers: list[Observer] = [_CtrlC()]
+        if _BOARD is not None:
+            self.observers.append(BoardObserver(_BOARD))
         self.settings = self.master.settings
         self.system = self.master.system
-        self.base = copy.deepcopy(self.system.parameters)
-        self.used = False
+        self.base = self.assembly.parameters
 
     def parameters(self, job: Job) -> dict[str, dict[str, Any]]:
         """The run's parameters: the built system's, then the job's, draws and seeds."""
@@ -203,10 +213,12 @@ class _State:
 
     def close(self) -> None:
         with contextlib.suppress(Exception):
-            self.master.terminate()
+            self.assembly.close()
 
 
 _LOCAL = threading.local()
+#: Scenarios parsed by this process for its campaigns, by (absolute path, sha256).
+_SHARED: dict[tuple[str, str], Scenario] = {}
 _BLOCKS_FILE = cosim.blocks.__file__  # FmuHost's frames, for _in_fmu_code
 _BOARD: StepBoard | None = None  # set in a local worker process
 
@@ -232,6 +244,21 @@ def _state(spec: WorkerSpec) -> _State:
     return state
 
 
+def share_scenario(scenario: Scenario) -> None:
+    """Let the runs made in this process build from ``scenario`` instead of reading its file.
+
+    A campaign's process parses its scenario once (:func:`cosim.verify.campaign.prepare`)
+    and shares it here; its worker processes read the file themselves, once each.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        As parsed (its path and sha256 identify it); it is not changed.
+    """
+    _SHARED.clear()  # one campaign's scenario at a time
+    _SHARED[(str(scenario.path.resolve()), scenario.sha256)] = scenario
+
+
 def release_worker_state() -> None:
     """Terminate the blocks this thread keeps for campaigns (if any)."""
     state: _State | None = getattr(_LOCAL, "state", None)
@@ -243,8 +270,9 @@ def release_worker_state() -> None:
 def run_one(spec: WorkerSpec, job: Job) -> RunRecord:
     """Run one job in this worker and evaluate every requirement on it.
 
-    The blocks are built on the first call in a thread and reset between calls. A
-    failing run is returned as a record with ``status = "failed"`` and its error.
+    The blocks are built on the first call in a thread and reset between calls
+    (:func:`cosim.runs.assemble`, :func:`cosim.runs.make_run`). A failing run is
+    returned as a record with ``status = "failed"`` and its error.
 
     Parameters
     ----------
@@ -259,20 +287,19 @@ def run_one(spec: WorkerSpec, job: Job) -> RunRecord:
     """
     started, cpu = time.perf_counter(), time.process_time()
     state = _state(spec)
-    if state.used:
+    if state.assembly.used:
         try:
             state.master.reset()
+            state.assembly.used = False
         except Exception:  # a block that failed may refuse to reset: build it anew
             release_worker_state()
             state = _state(spec)
-    state.used = True
     params = state.parameters(job)
-    state.system.parameters = params
     result = None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # loop warnings were shown once by the parent
         try:
-            result = state.master.run(on_row=_raise_pending)
+            result = make_run(state.assembly, parameters=params, observers=state.observers)
             status, error = "completed", ""
         except SimulationError as exc:
             result, status, error = exc.result, "failed", str(exc)
@@ -369,7 +396,7 @@ def run_here(
             release_worker_state()
 
 
-#: Ctrl-C noted while an FMU's own Python code ran, raised at the next recorded row.
+#: Ctrl-C noted while an FMU's own Python code ran, raised after the macro step.
 _PENDING: list[int] = []
 
 
@@ -377,6 +404,16 @@ def _raise_pending(row: Any = None) -> None:
     if _PENDING:
         _PENDING.clear()
         raise KeyboardInterrupt
+
+
+class _CtrlC(Observer):
+    """Raises a Ctrl-C noted in FMU code (:func:`_interrupts_outside_fmus`) after the step."""
+
+    def after_step(self, n: int, t: float) -> object:
+        if _PENDING:
+            _PENDING.clear()
+            raise KeyboardInterrupt
+        return None
 
 
 def _in_fmu_code(frame: Any) -> bool:
