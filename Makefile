@@ -68,12 +68,15 @@ format: $(STAMP)
 	$(VENV)/bin/ruff format cosim models tests benchmarks
 	$(VENV)/bin/ruff check --fix cosim models tests benchmarks
 
-# The generated pages: models/docs/<Model>.md and docs/filters/<Filter>.md, from the blocks'
-# own docstrings and declarations (run after changing a model's or a filter's parameters).
+# The documentation site (mkdocs.yml): first the generated pages, models/docs/<Model>.md and
+# docs/filters/<Filter>.md, from the blocks' own docstrings and declarations (run after
+# changing a model's or a filter's parameters), then the site, built strictly (a broken link
+# or a page missing from the nav fails) into site/.
 .PHONY: docs
 docs: $(STAMP)
 	$(PY) -m cosim.interop.modeldocs
 	$(PY) -m cosim.interop.filterdocs
+	$(VENV)/bin/mkdocs build --strict --site-dir site
 
 clean:
 	rm -rf $(FMUDIR) out .pytest_cache

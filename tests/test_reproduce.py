@@ -1,4 +1,4 @@
-"""The README's reproduction tables and figures come from code (cosim.reproduce)."""
+"""The reproduction tables and figures of docs/reproductions.md come from code (cosim.reproduce)."""
 
 from __future__ import annotations
 
@@ -40,23 +40,28 @@ def test_unknown_paper_is_refused(tmp_path: Path) -> None:
         reproduce("seed999", tmp_path, 1, 0)
 
 
-@pytest.mark.parametrize("paper", PAPERS)
-def test_readme_figures_of_each_reproduced_paper_are_committed(paper: str) -> None:
-    text = (ROOT / "README.md").read_text()
-    m = re.search(rf"<!-- {paper}:begin -->\n(.*?)<!-- {paper}:end -->", text, re.S)
-    if m is None:
-        pytest.skip(f"{paper} has no README block yet")
-    for link in re.findall(r"!\[[^\]]*\]\(([^)]+)\)", m.group(1)):
-        assert link.startswith(f"docs/figures/{paper}/"), link
-        assert (ROOT / link).is_file(), link
+#: The page the reproduction blocks live on (between their seedNNN markers).
+REPRODUCTIONS = ROOT / "docs" / "reproductions.md"
 
 
 @pytest.mark.parametrize("paper", PAPERS)
-def test_default_runs_and_seed_are_those_of_the_readme_block(paper: str) -> None:
-    """`ins-cosim reproduce PAPER --update-readme` without options regenerates the same block."""
-    text = (ROOT / "README.md").read_text()
+def test_figures_of_each_reproduced_paper_are_committed(paper: str) -> None:
+    text = REPRODUCTIONS.read_text()
     m = re.search(rf"<!-- {paper}:begin -->\n(.*?)<!-- {paper}:end -->", text, re.S)
-    assert m is not None, f"README has no {paper} block"
+    assert m is not None, f"docs/reproductions.md has no {paper} block"
+    links = re.findall(r"!\[[^\]]*\]\(([^)]+)\)", m.group(1))
+    assert links, f"the {paper} block shows no figure"
+    for link in links:  # relative to the page, docs/
+        assert link.startswith(f"figures/{paper}/"), link
+        assert (REPRODUCTIONS.parent / link).is_file(), link
+
+
+@pytest.mark.parametrize("paper", PAPERS)
+def test_default_runs_and_seed_are_those_of_the_docs_block(paper: str) -> None:
+    """`ins-cosim reproduce PAPER` without options regenerates the same block."""
+    text = REPRODUCTIONS.read_text()
+    m = re.search(rf"<!-- {paper}:begin -->\n(.*?)<!-- {paper}:end -->", text, re.S)
+    assert m is not None, f"docs/reproductions.md has no {paper} block"
     runs, seed = DEFAULTS[paper]
     block = m.group(1)
     assert f"{runs} runs" in block or f"runs={runs}" in block

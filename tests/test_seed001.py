@@ -250,14 +250,14 @@ def test_lever_arm_sweep_acceptance_3() -> None:
 
 @pytest.mark.slow
 def test_reproduce_writes_the_readme_block(tmp_path: Path) -> None:
-    """The whole reproduction with one run per point: tables, plots, README markers."""
+    """The whole reproduction with one run per point: tables, plots, the page's markers."""
     md = reproduce(tmp_path, runs=1, seed=2011, workers=2)
     for title in ("Table 1 of seed 001", "Flexure modelled against ignored", "Lever-arm sweep",
                   "Initial heading misalignment sweep", "Linear covariance analysis"):  # fmt: skip
         assert title in md
     for png in ("modelled_vs_ignored", "lever_arm", "heading_sweep"):
         assert (tmp_path / f"seed001_{png}.png").stat().st_size > 10_000
-    readme = tmp_path / "README.md"
-    shutil.copy(ROOT / "README.md", readme)
-    update_readme(readme, "seed001", md)
-    assert "Table 1 of seed 001" in readme.read_text()
+    page = tmp_path / "reproductions.md"
+    shutil.copy(ROOT / "docs" / "reproductions.md", page)
+    update_readme(page, "seed001", md)
+    assert "Table 1 of seed 001" in page.read_text()
