@@ -76,7 +76,7 @@ format: $(STAMP)
 docs: $(STAMP)
 	$(PY) -m cosim.interop.modeldocs
 	$(PY) -m cosim.interop.filterdocs
-	$(VENV)/bin/mkdocs build --strict --site-dir site
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --site-dir site
 
 clean:
 	rm -rf $(FMUDIR) out .pytest_cache

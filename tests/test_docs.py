@@ -405,5 +405,5 @@ def test_the_site_builds_strictly(tmp_path: Path) -> None:
     )
     assert res.returncode == 0, res.stderr[-4000:]
     assert (tmp_path / "site" / "index.html").is_file()
-    assert (tmp_path / "site" / "models" / "StrapdownImu" / "index.html").is_file()
-    assert (tmp_path / "site" / "changelog" / "index.html").is_file()
+    assert (tmp_path / "site" / "models" / "StrapdownImu.html").is_file()
+    assert (tmp_path / "site" / "changelog.html").is_file()
