@@ -79,4 +79,4 @@ docs: $(STAMP)
 	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --site-dir site
 
 clean:
-	rm -rf $(FMUDIR) out .pytest_cache
+	rm -rf $(FMUDIR) out site .pytest_cache
