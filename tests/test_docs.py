@@ -33,7 +33,8 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+#: The repository root: the folder above this file that holds mkdocs.yml (wherever tests/ nests it).
+ROOT = next(p for p in Path(__file__).resolve().parents if (p / "mkdocs.yml").is_file())
 BIN = Path(sys.executable).parent
 
 #: Fence languages that are examples to run; every other language is data (toml, text, ...).
