@@ -35,7 +35,7 @@ fmus: $(FMUDIR)/.built
 
 # The main job: one run in-process and from the FMUs, then a campaign that decides: the
 # north-finding requirements of demo_north_finding.toml judged at 20, 40 and 80 runs until
-# every verdict is decided (exit 0: all satisfied; docs/design/ci.md). DEMO_VERIFY is the
+# every verdict is decided (exit 0: all satisfied; docs/design.md, "The main job decides"). DEMO_VERIFY is the
 # command alone (tests/test_ci.py runs it).
 DEMO_VERIFY = $(VENV)/bin/ins-cosim verify scenarios/demo_north_finding.toml --until-decided \
 	--max-runs 80 --workers 2 --report out/demo/verification --no-progress
@@ -77,12 +77,15 @@ format: $(STAMP)
 	$(VENV)/bin/ruff format cosim models tests benchmarks tools
 	$(VENV)/bin/ruff check --fix cosim models tests benchmarks tools
 
-# The generated pages: models/docs/<Model>.md and docs/filters/<Filter>.md, from the blocks'
-# own docstrings and declarations (run after changing a model's or a filter's parameters).
+# The documentation site (mkdocs.yml): first the generated pages, models/docs/<Model>.md and
+# docs/filters/<Filter>.md, from the blocks' own docstrings and declarations (run after
+# changing a model's or a filter's parameters), then the site, built strictly (a broken link
+# or a page missing from the nav fails) into site/.
 .PHONY: docs
 docs: $(STAMP)
 	$(PY) -m cosim.interop.modeldocs
 	$(PY) -m cosim.interop.filterdocs
+	NO_MKDOCS_2_WARNING=1 $(VENV)/bin/mkdocs build --strict --site-dir site
 
 clean:
-	rm -rf $(FMUDIR) out .pytest_cache
+	rm -rf $(FMUDIR) out site .pytest_cache

@@ -1,7 +1,7 @@
 """How many scenario files this process has parsed: the count behind "parse once per process".
 
 :func:`cosim.scenario_parse.parse_scenario` notes every parse here. A campaign parses its
-scenario once in its own process and once in each worker process (docs/design/run.md);
+scenario once in its own process and once in each worker process (docs/design.md);
 tests check that with :data:`COUNT` in this process, and, for worker processes, with the
 log file named by the environment variable :data:`LOG_ENV` (one line ``<pid> <path>`` per
 parse, appended; not written when the variable is unset).

@@ -16,7 +16,7 @@ The run itself is the master stepping with observers watching
 (:func:`cosim.recording.record_run`): the finiteness check, the recorder, then the
 caller's (the crash step board of isolated runs and workers, Ctrl-C checks, progress,
 early stops). Parsing a scenario file is the caller's business and happens once per
-process (:func:`cosim.scenario.load_scenario`); docs/design/run.md gives the reasons.
+process (:func:`cosim.scenario.load_scenario`); docs/design.md says why.
 """
 
 from __future__ import annotations

@@ -1,8 +1,8 @@
 """The error-model protocol (cosim.estimation.error_model) and a user's filter's budget.
 
 ``propagate`` is checked against the covariance loop it stands on; then the toy
-levelling filter of docs/error_budget.md, installed as a distribution of its own with its
-entry point (the way docs/error_budget.md and the README's "Adding your own model or
+levelling filter of docs/filter_budget.md, installed as a distribution of its own with its
+entry point (the way docs/filter_budget.md and the README's "Adding your own model or
 filter" say), gets an error budget in its verification report whose lines add up to the
 filter's own covariance.
 """
@@ -162,7 +162,7 @@ seed = 7
 
 @pytest.fixture
 def installed_toy(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
-    """docs/error_budget.md's filter installed as ``my-filters 0.1`` (modules + dist-info)."""
+    """docs/filter_budget.md's filter installed as ``my-filters 0.1`` (modules + dist-info)."""
     site = tmp_path / "site"
     package = site / "my_filters"
     package.mkdir(parents=True)

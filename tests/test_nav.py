@@ -181,7 +181,7 @@ def test_small_rotation_helpers() -> None:
     )
 
 
-# The README's example ("Writing an alignment filter"), verbatim after its path comment.
+# The example of docs/extending.md ("Writing an alignment filter"), verbatim after its path comment.
 TOY_LEVELLING = '''
 import numpy as np
 

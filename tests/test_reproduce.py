@@ -31,9 +31,8 @@ SHIPPED = ("seed000", "seed001", "seed003")
 def published_page() -> Path:
     """The page that holds the published blocks: the docs page once it has the markers."""
     page = ROOT / reproductions.DOCS_PAGE
-    if page.is_file() and "<!-- seed003:begin -->" in page.read_text(encoding="utf-8"):
-        return page
-    return ROOT / "README.md"  # until the docs site takes the sections over
+    assert "<!-- seed003:begin -->" in page.read_text(encoding="utf-8"), page
+    return page
 
 
 def test_update_docs_replaces_only_between_markers(tmp_path: Path) -> None:

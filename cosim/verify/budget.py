@@ -20,7 +20,7 @@ is asked for its model with the run's facts
 (:class:`~cosim.estimation.error_model.RunFacts`); it returns a
 :class:`~cosim.estimation.error_model.LinearErrorModel` (budgeted here), a
 :class:`~cosim.estimation.error_model.SignalBudgetModel` (that budgets each
-requirement itself) or None. docs/error_budget.md shows a user's filter doing it.
+requirement itself) or None. docs/filter_budget.md shows a user's filter doing it.
 
 Beside it the campaign's evidence (:mod:`cosim.verify.regression`): each run's signed
 error at the budget's time regressed on the parameters the campaign drew, with the slope
