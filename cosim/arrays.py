@@ -18,70 +18,20 @@ start value included; structural parameters cannot be changed.
 
 from __future__ import annotations
 
-import dataclasses
-import itertools
 import math
-from collections.abc import Callable, Iterator
+from collections.abc import Callable
 from typing import Any
 
-from cosim.variables import ArrayElement, Variable
+from cosim.variables import (  # the element names and variables live there (no circle)
+    ELEMENT_VR_BASE,
+    ArrayElement,
+    Variable,
+    element_names,
+    element_starts,
+    expand_array,
+)
 
 __all__ = ["ELEMENT_VR_BASE", "ArrayAccess", "element_names", "element_starts", "expand_array"]
-
-#: Element references start here (above every uint32 FMI value reference).
-ELEMENT_VR_BASE = 2**32
-
-
-def element_names(name: str, shape: tuple[int, ...]) -> Iterator[str]:
-    """The scalar names of an array's elements, row-major.
-
-    Parameters
-    ----------
-    name : str
-        The array's name.
-    shape : tuple of int
-        Its shape.
-
-    Returns
-    -------
-    iterator of str
-        ``x[1]``, ``x[2]``, ... for one dimension; ``A[1,1]``, ``A[1,2]``, ... for more.
-    """
-    for index in itertools.product(*(range(1, n + 1) for n in shape)):
-        yield f"{name}[{','.join(str(i) for i in index)}]"
-
-
-def element_starts(start: Any, vtype: str, size: int) -> list[Any]:
-    """An array's start values, one per element (None where the FMU declares none).
-
-    Parameters
-    ----------
-    start : str or None
-        The ``start`` attribute as fmpy reads it (values separated by blanks).
-    vtype : str
-        The variable type.
-    size : int
-        The number of elements.
-
-    Returns
-    -------
-    list
-        ``size`` values (float, int or bool); one start value is used for every element.
-    """
-    if start is None:
-        return [None] * size
-    words = str(start).split()
-    if len(words) == 1:
-        words *= size
-    if len(words) != size:
-        return [None] * size
-    if vtype in ("Float64", "Float32", "Real"):
-        return [float(w) for w in words]
-    if vtype == "Boolean":
-        return [w in ("true", "1") for w in words]
-    if vtype in ("String", "Binary"):
-        return words
-    return [int(w) for w in words]
 
 
 class ArrayAccess:
@@ -188,37 +138,6 @@ class ArrayAccess:
                 set_([a], self.current[a])
 
         return set_values
-
-
-def expand_array(v: Any, base: Variable, next_vr: Callable[[], int]) -> list[Variable]:
-    """The element variables of an FMI 3 array variable.
-
-    Parameters
-    ----------
-    v : fmpy.model_description.ModelVariable
-        The array (``v.shape`` set by fmpy).
-    base : Variable
-        The array as one variable (name, type, causality, unit, ...; start unused).
-    next_vr : callable
-        Gives the next free element reference.
-
-    Returns
-    -------
-    list of Variable
-        One per element, row-major.
-    """
-    shape = tuple(int(n) for n in v.shape)
-    starts = element_starts(v.start, v.type, math.prod(shape))
-    return [
-        dataclasses.replace(
-            base,
-            name=name,
-            vr=next_vr(),
-            start=start,
-            element=ArrayElement(array=base.name, array_vr=base.vr, index=i, shape=shape),
-        )
-        for i, (name, start) in enumerate(zip(element_names(base.name, shape), starts, strict=True))
-    ]
 
 
 def nested_values(raw: Any, scalars: list[Variable], error: Callable[[str], Exception]) -> Any:

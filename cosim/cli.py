@@ -415,8 +415,7 @@ def verify(
         _output_folder(report_dir, "--report")
         if rerun_crashed and not resume:
             raise UserError("--rerun-crashed reruns the crashed runs of --resume: add --resume")
-        # one campaign at a time in the folder, until its reports are written
-        click.get_current_context().with_resource(report_folder_lock(report_dir))
+        click.get_current_context().with_resource(report_folder_lock(report_dir))  # one at a time
         sc = load_scenario(scenario)  # the one parse of this process (cosim.runs)
         shown = copy.deepcopy(sc)
         if fmu_dir is not None:

@@ -143,9 +143,10 @@ class Recorder(Observer):
         cols = _as_slice(self._real_cols)
         part = _as_slice(real_slots)
         source = values[part] if isinstance(part, slice) else None  # a view: no gather
-        self.strings = strings = {
+        strings: dict[str, list[str]] = {
             n: [] for _h, vtype, _v, _c, ns in typed if vtype in ("String", "Binary") for n in ns
         }
+        self.strings = strings
 
         def write(t: float) -> None:
             line = table[self.rows]
@@ -230,7 +231,9 @@ class Recorder(Observer):
         }
         texts = {n: list(x) for n, x in self.strings.items()}
         failed = ending is not None and ending.status == "failed"
-        error = str(ending.error) if failed and ending.error is not None else ""
+        error = ""
+        if ending is not None and failed and ending.error is not None:
+            error = str(ending.error)
         status = "failed" if failed else "completed"
         data = self.data[: self.rows].copy()
         return RunResult(data, meta, status=status, error=error, strings=texts)

@@ -20,6 +20,7 @@ import importlib
 import math
 import sys
 from collections.abc import Iterator
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -190,7 +191,7 @@ class Scenario(ScenarioSpec):
             if not scalars or scalars[0].causality not in SETTABLE:
                 raise self.error(self._not_settable(spec.name, pname, scalars, host), key=key)
             var0 = scalars[0]
-            raw = nested_values(raw, scalars, lambda m, key=key: self.error(m, key=key))
+            raw = nested_values(raw, scalars, partial(self.error, key=key))
             try:
                 real = var0.type in (REAL, "Float32")
                 value = to_unit(raw, var0.conversion_unit) if real else raw

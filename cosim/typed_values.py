@@ -191,7 +191,8 @@ def _shape(side: list[Variable]) -> tuple[int, ...]:
     """A whole array's shape, else the number of scalars as a 1-D shape."""
     e = side[0].element
     if e is not None and all(v.element and v.element.array_vr == e.array_vr for v in side):
-        if len(side) == len(set(v.element.index for v in side)) and len(side) == _size(e.shape):
+        indices = {v.element.index for v in side if v.element is not None}
+        if len(side) == len(indices) and len(side) == _size(e.shape):
             return e.shape
     return (len(side),)
 

@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import dataclasses
 import difflib
+import itertools
+import math
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -245,8 +247,6 @@ def fmu_variables(md: Any) -> dict[str, Variable]:
     -----
     An FMI 3 array variable becomes one scalar per element (:mod:`cosim.arrays`).
     """
-    from cosim.arrays import ELEMENT_VR_BASE, expand_array
-
     units = fmu_units(md)
     out: dict[str, Variable] = {}
     element_vrs = iter(range(ELEMENT_VR_BASE, ELEMENT_VR_BASE + 2**31))
@@ -282,3 +282,90 @@ def _items(v: Any) -> tuple[tuple[str, int], ...]:
     """The (name, value) items of an Enumeration variable's declared type."""
     declared = getattr(v, "declaredType", None)
     return tuple((i.name, int(i.value)) for i in getattr(declared, "items", None) or ())
+
+
+#: Element references start here (above every uint32 FMI value reference).
+ELEMENT_VR_BASE = 2**32
+
+
+def element_names(name: str, shape: tuple[int, ...]) -> Iterator[str]:
+    """The scalar names of an array's elements, row-major.
+
+    Parameters
+    ----------
+    name : str
+        The array's name.
+    shape : tuple of int
+        Its shape.
+
+    Returns
+    -------
+    iterator of str
+        ``x[1]``, ``x[2]``, ... for one dimension; ``A[1,1]``, ``A[1,2]``, ... for more.
+    """
+    for index in itertools.product(*(range(1, n + 1) for n in shape)):
+        yield f"{name}[{','.join(str(i) for i in index)}]"
+
+
+def element_starts(start: Any, vtype: str, size: int) -> list[Any]:
+    """An array's start values, one per element (None where the FMU declares none).
+
+    Parameters
+    ----------
+    start : str or None
+        The ``start`` attribute as fmpy reads it (values separated by blanks).
+    vtype : str
+        The variable type.
+    size : int
+        The number of elements.
+
+    Returns
+    -------
+    list
+        ``size`` values (float, int or bool); one start value is used for every element.
+    """
+    if start is None:
+        return [None] * size
+    words = str(start).split()
+    if len(words) == 1:
+        words *= size
+    if len(words) != size:
+        return [None] * size
+    if vtype in ("Float64", "Float32", "Real"):
+        return [float(w) for w in words]
+    if vtype == "Boolean":
+        return [w in ("true", "1") for w in words]
+    if vtype in ("String", "Binary"):
+        return words
+    return [int(w) for w in words]
+
+
+def expand_array(v: Any, base: Variable, next_vr: Callable[[], int]) -> list[Variable]:
+    """The element variables of an FMI 3 array variable.
+
+    Parameters
+    ----------
+    v : fmpy.model_description.ModelVariable
+        The array (``v.shape`` set by fmpy).
+    base : Variable
+        The array as one variable (name, type, causality, unit, ...; start unused).
+    next_vr : callable
+        Gives the next free element reference.
+
+    Returns
+    -------
+    list of Variable
+        One per element, row-major.
+    """
+    shape = tuple(int(n) for n in v.shape)
+    starts = element_starts(v.start, v.type, math.prod(shape))
+    return [
+        dataclasses.replace(
+            base,
+            name=name,
+            vr=next_vr(),
+            start=start,
+            element=ArrayElement(array=base.name, array_vr=base.vr, index=i, shape=shape),
+        )
+        for i, (name, start) in enumerate(zip(element_names(base.name, shape), starts, strict=True))
+    ]

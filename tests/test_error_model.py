@@ -28,7 +28,7 @@ from cosim.estimation.error_model import LinearErrorModel, RunFacts, StepGrid, p
 from cosim.models.constants import ARCMIN
 
 ROOT = Path(__file__).resolve().parent.parent
-PAGE = ROOT / "docs" / "error_budget.md"
+PAGE = ROOT / "docs" / "filter_budget.md"
 
 
 class Oscillator:

@@ -27,7 +27,10 @@ FloatArray = NDArray[np.float64]
 class BudgetLines(Protocol):
     """The numerical half of a linear error model (see :class:`ScenarioErrorModel`)."""
 
-    names: tuple[str, ...]
+    @property
+    def names(self) -> tuple[str, ...]:
+        """State names, in order."""
+        ...
 
     @property
     def grid(self) -> StepGrid:

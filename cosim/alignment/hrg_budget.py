@@ -273,7 +273,9 @@ class HrgBudget:
         _, noise_parts, noise_total = self.noise(at)
         parts = [("model residual (no sensor error, no noise)", residual)]
         parts += list(signed.items())
-        items = [{"source": s, "variance": v * v, "signed": v} for s, v in parts]
+        items: list[dict[str, Any]] = [
+            {"source": s, "variance": v * v, "signed": v} for s, v in parts
+        ]
         items += [
             {"source": s, "variance": float(p[k]) * factor**2, "signed": None}
             for s, p in noise_parts.items()

@@ -310,9 +310,13 @@ class SinsStaticAlignment(Block):
         LinearErrorModel
             :func:`cosim.alignment.error_models.static_error_model`.
         """
+        from typing import cast
+
         from cosim.alignment.error_models import static_error_model
 
-        return static_error_model(run)
+        # a ScenarioErrorModel offers the protocol's members (mypy cannot match the
+        # dataclass's fields against the protocol's read-only properties here)
+        return cast("LinearErrorModel | None", static_error_model(run))
 
     def initialize(self) -> None:
         self._check()

@@ -21,7 +21,7 @@ exact, so the total is the budget's total to the bit).
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 import numpy as np
@@ -224,7 +224,7 @@ class CovarianceBudget(_Recorded):
 
 
 def covariance_budget(
-    P0_parts: dict[str, ArrayLike],
+    P0_parts: Mapping[str, ArrayLike],
     n_steps: int,
     dt: float,
     transition: BudgetTransition,
@@ -283,7 +283,7 @@ def covariance_budget(
 
 
 def _covariance_loop(
-    P0_parts: dict[str, ArrayLike],
+    P0_parts: Mapping[str, ArrayLike],
     n_steps: int,
     dt: float,
     transition: BudgetTransition,

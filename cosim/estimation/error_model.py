@@ -210,9 +210,17 @@ class LinearErrorModel(Protocol):
 
     block: str
     description: str
-    names: tuple[str, ...]
     t0: float
-    grid: StepGrid
+
+    @property
+    def names(self) -> tuple[str, ...]:
+        """State names, in order (read-only)."""
+        ...
+
+    @property
+    def grid(self) -> StepGrid:
+        """Its steps and the rows it keeps (read-only)."""
+        ...
 
     def initial_covariance(self) -> dict[str, FloatArray]:
         """``P0`` split into budget lines.

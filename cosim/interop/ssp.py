@@ -403,7 +403,7 @@ def _describe(sc: Scenario, system: Any) -> tuple[ET.Element, dict[str, Any]]:
         if names:
             renamed[name] = names
     offsets = getattr(sc, "offsets", {})  # an imported archive's (SspScenario)
-    suppressed = getattr(sc, "suppressed", set())
+    suppressed: set[Any] = getattr(sc, "suppressed", set())
     if system.connections:
         connections = ET.SubElement(system_el, _q(SSD, "Connections"))
         for c in system.connections:

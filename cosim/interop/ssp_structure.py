@@ -307,7 +307,8 @@ def resolve_links(archive: Archive, flat: Flat) -> tuple[list[Link], list[str]]:
     for hop in flat.hops:
         if hop.start[0] != "comp":
             continue
-        stack = [(hop, hop.factor, hop.offset, hop.suppress, (hop.start,))]
+        seen0: tuple[tuple[str, str, str], ...] = (hop.start,)
+        stack = [(hop, hop.factor, hop.offset, hop.suppress, seen0)]
         while stack:
             h, f, o, s, seen = stack.pop()
             end = h.end

@@ -500,14 +500,14 @@ def covariance_lines(dt: float = 0.1) -> tuple[list[str], dict[str, Any]]:
             got[f] = float(nav[2]) if q == "heading" else float(level)
             values[(f, t, q)] = got[f]
         # tolerance: +-10 % on a single figure ("about"), the stated range +-0.05' otherwise
-        ok = (
+        within = (
             lo * 0.9 <= got[False] <= hi * 1.1 if lo == hi else lo - 0.05 <= got[False] <= hi + 0.05
         )
         issue = f"about {lo:g}'" if lo == hi else f"{lo:g}-{hi:g}'"
         tol = "+-10 %" if lo == hi else "range +-0.05'"
         rows.append(
             f"| {q} sigma | {t:g} | {issue} | {fmt(got[False])}' | {fmt(got[True])}' | "
-            f"{ok(ok)} ({tol}) |"
+            f"{ok(within)} ({tol}) |"
         )
     return rows, values
 

@@ -1,4 +1,4 @@
-"""Sigma calibration over a campaign: is a requirement's stated sigma the spread of its error?
+"""Sigma calibration over a campaign: each stated sigma against the spread of its error.
 
 A requirement that names the filter's 1-sigma of its error (``sigma = "align.rpy_sigma[3]"``)
 can be judged for more than its bound: over ``n`` independent runs, at each recorded
