@@ -36,7 +36,7 @@ fmus: $(FMUDIR)/.built
 # The main job: one run in-process and from the FMUs, then a campaign that decides: the
 # north-finding requirements of demo_north_finding.toml judged at 20, 40 and 80 runs until
 # every verdict is decided (exit 0: all satisfied; docs/design.md, "The main job decides"). DEMO_VERIFY is the
-# command alone (tests/test_ci.py runs it).
+# command alone (tests/integration/test_ci.py runs it).
 DEMO_VERIFY = $(VENV)/bin/ins-cosim verify scenarios/demo_north_finding.toml --until-decided \
 	--max-runs 80 --workers 2 --report out/demo/verification --no-progress
 

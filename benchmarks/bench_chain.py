@@ -6,7 +6,7 @@ slave IMU, 120 s, 10 ms macro step, 1 ms truth step, every output recorded).
 Rows (ratios of wall times measured side by side, best of interleaved repetitions):
 
 - co-simulation in-process / monolithic numpy (``benchmarks/monolithic.py``); the run
-  also checks that both give the same outputs (1e-9, as ``tests/test_monolithic.py``);
+  also checks that both give the same outputs (1e-9, as ``tests/benchmarks/test_monolithic.py``);
 - co-simulation with every block an FMU (fmpy) / in-process.
 
 Only ``Master.run`` and ``monolithic.simulate`` are timed (building the blocks,

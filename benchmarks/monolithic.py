@@ -4,7 +4,7 @@ Reference for the benchmarks: the chain of ``benchmarks/transfer_chain.toml`` (m
 ship -> deck flexure -> lever arm -> slave strapdown IMU, seed 001) computed over the
 whole run at once, with whole-array numpy instead of one call per block per macro
 step. It reproduces every output of the co-simulation (Gauss-Seidel, every block at
-rate 1) from the same parameters and seeds; ``tests/test_monolithic.py`` checks the
+rate 1) from the same parameters and seeds; ``tests/benchmarks/test_monolithic.py`` checks the
 agreement to 1e-9.
 
 How each block becomes whole-array code (``N`` macro steps of ``h``, ``t_n = t0 + n h``,

@@ -1,5 +1,5 @@
 """A test block that notes every time and step size the master hands it
-(``clockblocks:TimeProbe``, for tests/test_clock.py)."""
+(``clockblocks:TimeProbe``, for tests/core/test_clock.py)."""
 
 from __future__ import annotations
 

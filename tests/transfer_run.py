@@ -1,6 +1,6 @@
 """Shared by the tests of the transfer filter's kernels: a short transfer-alignment run.
 
-Not a test module: ``tests/test_native_publish.py``, ``test_native_master.py`` and
+Not a test module: ``tests/models/test_native_publish.py``, ``test_native_master.py`` and
 ``test_native_feedback.py`` build the seed 001 scenario, shortened, with the compiled
 kernels on or off, and reach its ``TransferAlignment`` block.
 """

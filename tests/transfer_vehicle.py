@@ -1,6 +1,6 @@
 """Shared by the land-vehicle transfer-alignment tests: one run of the scenario, its figures.
 
-Not a test module: ``tests/test_transfer_matching.py`` (fast and slow tests) and the
+Not a test module: ``tests/alignment/test_transfer_matching.py`` (fast and slow tests) and the
 acceptance campaign of docs/transfer_alignment.md run
 ``scenarios/transfer_alignment_vehicle.toml`` through :func:`vehicle_run`. Run ``i`` takes
 the IMU seed ``1000 + i`` and the master seed ``2000 + i`` (the scenario's own seeds are

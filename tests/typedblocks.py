@@ -1,5 +1,5 @@
 """In-process test blocks with Integer and Boolean outputs and inputs (``typedblocks:Counter``,
-``typedblocks:Tally``), for the typed links of tests/test_typed_values.py."""
+``typedblocks:Tally``), for the typed links of tests/core/test_typed_values.py."""
 
 from __future__ import annotations
 

@@ -13,7 +13,7 @@ The step can also add itself to period sums kept in a second buffer
 (:meth:`CompiledStrapdown.step_summed`, :meth:`CompiledStrapdown.sums_into`): the twin of
 ``nav.step(...)`` followed by :meth:`cosim.alignment.transfer_model.PeriodSums.add`, in one
 call. The two paths agree to rounding: the C code sums the three matrix products of a step
-in the order k = 0, 1, 2, numpy's may go through BLAS (``tests/test_nav_compiled.py``).
+in the order k = 0, 1, 2, numpy's may go through BLAS (``tests/alignment/test_nav_compiled.py``).
 """
 
 from __future__ import annotations

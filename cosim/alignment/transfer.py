@@ -93,7 +93,7 @@ Compiled outputs: when :func:`cosim.models.native.kernel` gives ``transfer_publi
 ``rpy_sigma``, ``rel_rpy``, ``nees``) and the step's master attitude ``C_b_n`` are one
 call; :meth:`TransferAlignment.attitude_numpy` stays as the fallback and the readable
 statement (``INS_COSIM_NATIVE=0``, no library), equal to rounding
-(``tests/test_native_publish.py``). Either way the vector outputs are written in place
+(``tests/models/test_native_publish.py``). Either way the vector outputs are written in place
 into the block's output buffer while they are its views, so the master reads them as one
 slice (:meth:`models.block.Block.real_reader`); an output rebound from outside is
 assigned a new array instead. Once per filter period, ``cosim/alignment/transfer_master.c``
@@ -101,7 +101,7 @@ gives the master's state fed to the filter (``transfer_master_state``: attitude,
 w.r.t. the earth from the attitude ring, velocity; :meth:`TransferAlignment.master_state_numpy`)
 and what changes with the shown covariance (``transfer_period``: ``P_att``, its inverse,
 flexure, bias and drift outputs; :meth:`TransferAlignment.period_numpy`), one call each,
-equal to rounding (``tests/test_native_master.py``).
+equal to rounding (``tests/models/test_native_master.py``).
 
 Limits: the block must step every macro step (rate 1) with a constant step that divides
 ``period``: its strapdown needs every increment; it starts once it has five master

@@ -5,7 +5,7 @@
 the whole stack of sigma points, the period sums and constants packed into one buffer),
 or, with ``INS_COSIM_NATIVE=0`` or where the library does not load, the numpy function
 itself. The two agree to rounding (numpy's matrix products may go through BLAS, the C code
-sums in index order; ``tests/test_native_propagate.py``). The numpy function stays the
+sums in index order; ``tests/models/test_native_propagate.py``). The numpy function stays the
 readable statement of the model; the C code repeats it formula by formula.
 """
 

@@ -8,7 +8,7 @@ residual, plus ``Q``) and ``ukf.update`` with the velocity match, then the NIS.
 (:mod:`cosim.alignment.transfer_native`), and leaves the UKF's attributes as its own two
 calls leave them (``x``, ``P``, ``x_prior``, ``P_prior``, ``z_pred``, ``S``, ``K``, ``y``,
 ``x_post``, ``P_post``). The numpy UKF stays the fallback and the readable statement: the
-two agree to rounding (``tests/test_native_ukf.py``). Where a Cholesky factorisation
+two agree to rounding (``tests/models/test_native_ukf.py``). Where a Cholesky factorisation
 fails, the compiled call writes nothing and the numpy calls run, so the error raised is
 the UKF's own.
 
@@ -18,7 +18,7 @@ also does the period's closed-loop feedback, the twin of ``TransferFilter._feedb
 of the reset that follows it: the mechanisation corrected in place with the posterior,
 ``ukf.x`` and ``ukf.P`` the state and covariance after the reset (``x_post``, ``P_post``
 stay the posterior). One ctypes call per period, instead of some 40 numpy operations
-(``tests/test_native_feedback.py``).
+(``tests/models/test_native_feedback.py``).
 """
 
 from __future__ import annotations

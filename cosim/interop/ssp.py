@@ -33,7 +33,7 @@ validated against the SSP 1.0 schemas in the tests):
 
 SSP describes structure, not the master algorithm: libcosim runs the archive with its
 fixed-step Jacobi algorithm, which equals our master with ``coupling = "jacobi"``
-(tests/test_ssp.py). Built-in models are exported from the FMUs ``make fmus`` builds
+(tests/interop/test_ssp.py). Built-in models are exported from the FMUs ``make fmus`` builds
 (``fmus/build/<Model>.fmu``); Python blocks (alignment filters, ``class = ...``) have no
 FMU: the export names them and ``exclude`` (``--exclude BLOCK``) leaves them out, with
 the connections that are cut listed.
@@ -51,7 +51,7 @@ them (libcosim's reader matches the prefixed element names).
 The other direction is :mod:`cosim.interop.ssp_import` (``ins-cosim run|check x.ssp``):
 an exported archive read back runs to the scenario's results (1e-12), and the same
 archive gives the same outputs in ins-cosim, libcosim and fmpy
-(:mod:`cosim.interop.fmpy_ssp`) with Jacobi coupling (tests/test_three_masters.py).
+(:mod:`cosim.interop.fmpy_ssp`) with Jacobi coupling (tests/acceptance/test_three_masters.py).
 """
 
 from __future__ import annotations

@@ -42,7 +42,7 @@ The probabilities at a given true value, each with the statistic's own bound at 
 Failed runs: ``on_failure = "fail"`` counts them as runs over the limit; ``"exclude"``
 advises on the completed runs and scales the runs to come by the share that completed;
 ``"undecided"`` gives no advice while a run failed. Runs too short to decide give none.
-tests/test_advice.py follows the advice in simulated campaigns near and away from the
+tests/verify/test_advice.py follows the advice in simulated campaigns near and away from the
 limit.
 """
 

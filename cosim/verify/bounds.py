@@ -186,7 +186,7 @@ def rms_bounds(values: Sequence[float] | np.ndarray, confidence: float) -> tuple
     holding with probability ``confidence``. The bounds stay valid (conservative) when
     ``m^2`` is less dispersed than ``sigma^2 chi2(1)``, i.e. for metrics no heavier-tailed
     than ``|x|`` of a normal: a normal ``x`` with a mean, the largest ``|e|`` over a window,
-    a Rayleigh magnitude (shown by tests/test_confidence_coverage.py). Heavier-tailed
+    a Rayleigh magnitude (shown by tests/acceptance/test_confidence_coverage.py). Heavier-tailed
     metrics (``mean(m^4) / mean(m^2)^2`` well over 3) break them.
 
     Parameters
@@ -279,7 +279,7 @@ def ksigma_bootstrap_bounds(
     ``se = sqrt((mu4 - sigma^4) / n) / (2 sigma^2)`` from the sample's central moments.
     Upper bound ``U_mean + k U_sigma``, lower bound ``L_mean + k L_sigma``. Approximate:
     no bound of a mean is exact without a model (Bahadur & Savage 1956); in
-    tests/test_confidence_coverage.py it covers in at least the nominal share of campaigns
+    tests/acceptance/test_confidence_coverage.py it covers in at least the nominal share of campaigns
     for normal and window-maximum metrics at 30 runs, and the Bonferroni split keeps it
     conservative for moderately skewed ones (half-normal, Rayleigh, lognormal with
     sigma 0.25); heavier tails (lognormal sigma 0.5) cover about 92 % for 95 %.

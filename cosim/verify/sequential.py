@@ -10,7 +10,7 @@ lower bound rose above it; each of the two one-sided bounds fails with probabili
 Judging again at γ after each batch of runs and stopping at the first decision is not
 valid: every look is another chance of a wrong verdict, and the chances add up (with
 looks every 5 runs up to 200, a normal-theory RMS 10 % above its limit is called
-satisfied in about 9 % of campaigns at γ = 95 %; tests/test_sequential.py shows it).
+satisfied in about 9 % of campaigns at γ = 95 %; tests/verify/test_sequential.py shows it).
 
 **The rule: alpha spending over planned looks.** The looks are fixed before the first
 run: n_1 = the first batch (``--runs``, else ``[campaign] runs``), doubling
@@ -78,7 +78,7 @@ and for a metric with no additive part in the draws its variance can exceed the
 independent one by the factor n / (n - 1) (3 % for a 30-run batch). The sequential rule
 needs nothing beyond this: each look's bound is as valid as a fixed stratified
 campaign's, and the union bound over the looks holds as before. Simulated
-(tests/test_sequential_strata.py, 4000 campaigns per case, looks 20, 40, 80, 160, 320,
+(tests/verify/test_sequential_strata.py, 4000 campaigns per case, looks 20, 40, 80, 160, 320,
 metrics ``|0.95 z + 0.31 e|`` with z the stratified draw and e independent): an RMS 10 %
 above its limit is called satisfied in 0 of the campaigns on batch designs (0.2 % with z
 drawn independently), a p95 exactly at its limit violated in 0.03 % (2.6 %).

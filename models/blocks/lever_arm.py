@@ -58,7 +58,7 @@ Slave velocity (w.r.t. earth, master NED axes; ``omega_eb_b = omega - C_n_b omeg
 Compiled step: when :func:`models.native.library` gives the compiled kernels, a step is
 one call of ``lever_arm_step`` (``models/blocks/lever_arm.c``: the paths, the node loop and
 the step end above, node by node); otherwise the numpy code below. Both give the same
-outputs to rounding (1e-12, ``tests/test_native.py``).
+outputs to rounding (1e-12, ``tests/models/test_native.py``).
 """
 
 from __future__ import annotations
