@@ -277,12 +277,12 @@ def ksigma_bootstrap_bounds(
     the mean, pivot ``(m* - m) / (s* / sqrt(n))``, and the standard deviation on the log
     scale, pivot ``(log s* - log s) / se*`` with the delta-method standard error
     ``se = sqrt((mu4 - sigma^4) / n) / (2 sigma^2)`` from the sample's central moments.
-    Upper bound ``U_mean + k U_sigma``, lower bound ``L_mean + k L_sigma``. Approximate:
-    no bound of a mean is exact without a model (Bahadur & Savage 1956); in
-    tests/acceptance/test_confidence_coverage.py it covers in at least the nominal share of campaigns
-    for normal and window-maximum metrics at 30 runs, and the Bonferroni split keeps it
-    conservative for moderately skewed ones (half-normal, Rayleigh, lognormal with
-    sigma 0.25); heavier tails (lognormal sigma 0.5) cover about 92 % for 95 %.
+    Upper bound ``U_mean + k U_sigma``, lower bound ``L_mean + k L_sigma``. Approximate: no
+    bound of a mean is exact without a model (Bahadur & Savage 1956); in
+    tests/acceptance/test_confidence_coverage.py it covers in at least the nominal share of
+    campaigns for normal and window-maximum metrics at 30 runs, and the Bonferroni split keeps
+    it conservative for moderately skewed ones (half-normal, Rayleigh, lognormal with sigma
+    0.25); heavier tails (lognormal sigma 0.5) cover about 92 % for 95 %.
 
     Parameters
     ----------

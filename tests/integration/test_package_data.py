@@ -1,4 +1,6 @@
-"""Issue 27, item 1 (fast checks in the checkout; the installed wheel: tests/integration/test_install.py).
+"""Issue 27, item 1: fast checks in the checkout.
+
+The installed wheel: tests/integration/test_install.py.
 
 The files the commands read are found through :mod:`cosim.package_data` (the checkout's
 folders here, the package data in a wheel); every result records which kernel path ran;

@@ -49,7 +49,8 @@ def sins_scenario(
 def test_run_prints_and_records_the_verdicts(cli, tmp_path: Path) -> None:
     """`ins-cosim run` with R ten times too small: the NIS is flagged "sigma too small by
     about 3x" (sqrt(10) = 3.2: window estimates within 2-4.5) over most of the run, in the
-    printed summary and in results.json (the tuned filter: tests/verify/test_consistency_slow.py)."""
+    printed summary and in results.json (the tuned filter:
+    tests/verify/test_consistency_slow.py)."""
     bad = cli(
         "run",
         sins_scenario(tmp_path, "bad", stop="40 s", mistuned=True),
