@@ -55,9 +55,11 @@ def test_verify_with_two_workers_parses_once_in_the_parent_and_once_per_worker(
     }
     assert len(list((report / "runs").glob("run_*.json"))) == 4
     assert proc.pid not in workers and 1 <= len(workers) <= 2
-    # every other process that parsed is a worker that ran runs, and parsed once
-    assert set(by_pid) - {proc.pid} == workers
-    assert all(by_pid[w] == 1 for w in workers)
+    # every worker that ran runs parsed, once; besides the parent only the two workers
+    # parsed (a worker that started but got no run, on a busy machine, parsed once too)
+    others = set(by_pid) - {proc.pid}
+    assert workers <= others and len(others) <= 2
+    assert all(by_pid[w] == 1 for w in others)
 
 
 def test_a_campaign_in_this_process_parses_once(tmp_path: Path) -> None:

@@ -20,25 +20,49 @@ sys.modules["move_tests"] = move_tests
 spec.loader.exec_module(move_tests)
 
 
+#: Test files put back flat in a scratch tree, to be placed again by the rules.
+FLAT = (
+    "test_master.py",
+    "test_kalman.py",
+    "test_hrg_platform_gyro.py",
+    "test_campaign_lock.py",
+    "test_report.py",
+    "test_seed003.py",
+)
+
+
+def scratch_tree(root: Path) -> Path:
+    """A tree with this repository's packages and pyproject, and an empty ``tests/``."""
+    (root / "tests").mkdir()
+    (root / "pyproject.toml").write_text((ROOT / "pyproject.toml").read_text())
+    for package in ("cosim", "models"):
+        (root / package).symlink_to(ROOT / package)
+    return root
+
+
 @pytest.fixture(scope="module")
-def moves() -> dict[str, object]:
-    """The map of the current tree, by old file name."""
-    return {m.old.name: m for m in move_tests.plan(ROOT)}
+def moves(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
+    """The map of :data:`FLAT`, copied back flat into a scratch tree, by old file name."""
+    root = scratch_tree(tmp_path_factory.mktemp("flat"))
+    for name in FLAT:
+        (found,) = (ROOT / "tests").rglob(name)
+        (root / "tests" / name).write_text(found.read_text())
+    return {m.old.name: m for m in move_tests.plan(root)}
 
 
-def test_every_flat_test_file_gets_one_place_with_a_unique_name(moves: dict) -> None:
-    """Every ``tests/test_*.py`` is mapped, into a folder below ``tests/``, no name twice."""
-    flat = sorted(p.name for p in (ROOT / "tests").glob("test_*.py"))
-    assert sorted(moves) == flat
+def test_the_suite_sits_by_module_and_every_flat_file_gets_one_place(moves: dict) -> None:
+    """No test file is left flat in ``tests/``; flat ones map below it, no name twice."""
+    assert not sorted(p.name for p in (ROOT / "tests").glob("test_*.py"))
+    assert sorted(moves) == sorted(FLAT)
     new = [m.new for m in moves.values()]
     assert len({p.name for p in new}) == len(new)
-    assert all(p.parent.parent == ROOT / "tests" for p in new)
+    assert all(p.parent.parent.name == "tests" for p in new)
     assert all(p.name.startswith("test_") for p in new)
 
 
 def test_files_named_after_a_module_go_to_its_package(moves: dict) -> None:
     """The name rule, the longest-prefix rule and a name two packages share."""
-    where = {name: m.new.relative_to(ROOT / "tests").as_posix() for name, m in moves.items()}
+    where = {name: f"{m.new.parent.name}/{m.new.name}" for name, m in moves.items()}
     assert where["test_master.py"] == "core/test_master.py"
     assert where["test_kalman.py"] == "estimation/test_kalman.py"
     assert where["test_hrg_platform_gyro.py"] == "models/test_hrg_platform_gyro.py"
