@@ -46,6 +46,27 @@ MIN_RUNS = 2
 """Fewer completed runs are not judged (one run is the NEES's business)."""
 
 
+def normalised_sum(t: np.ndarray, e: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``n A_i``, the sum over the ``n`` runs of ``(e / s)^2``, at the instants it is judged.
+
+    Parameters
+    ----------
+    t : ndarray, shape (m,)
+        Common sample times of the runs [s].
+    e, s : ndarray, shape (n, m)
+        Errors and the filter's 1-sigma of them, same unit.
+
+    Returns
+    -------
+    times : ndarray, shape (k,)
+        The instants where every run's sigma is positive and finite and its error finite.
+    total : ndarray, shape (k,)
+        ``n A_i`` there (dimensionless; chi-square with ``n`` dof if consistent).
+    """
+    ok = np.all(np.isfinite(s) & (s > 0.0) & np.isfinite(e), axis=0)
+    return t[ok], ((e[:, ok] / s[:, ok]) ** 2).sum(axis=0)
+
+
 def calibrate(
     t: np.ndarray,
     e: np.ndarray,
@@ -89,20 +110,16 @@ def calibrate(
         why = f"{n} run(s) with a recorded sigma" if s.shape == e.shape else "no sigma recorded"
         out.update(consistent=None, samples=0, message=f"not judged: {why}")
         return out
-    ok = np.all(np.isfinite(s) & (s > 0.0) & np.isfinite(e), axis=0)
-    idx = np.flatnonzero(ok)
-    if idx.size == 0:
+    ts, total = normalised_sum(t, e, s)
+    if ts.size == 0:
         out.update(consistent=None, samples=0, message="not judged: no instant with a sigma")
         return out
-    z2 = (e[:, idx] / s[:, idx]) ** 2
-    total = z2.sum(axis=0)  # n * A_i: chi-square with n dof if consistent
-    ts = t[idx]
     edges = window_edges(float(ts[0]), float(ts[-1]), None, windows)
     found = window_test(ts, total, n, edges, false_alarm / (edges.size - 1), white=False)
     spans = inconsistent_spans(found)
     peak = int(np.argmax(total))
     out.update(
-        samples=int(idx.size),
+        samples=int(ts.size),
         t_start=float(ts[0]),
         t_end=float(ts[-1]),
         windows=[w.to_dict() for w in found],
@@ -201,10 +218,10 @@ def calibration_figure(campaign: Any, k: int, entry: dict[str, Any]) -> str:
 
     t, e, s = campaign_histories(campaign, k)
     assert t is not None
-    ok = np.all(np.isfinite(s) & (s > 0.0) & np.isfinite(e), axis=0)
-    a_i = np.mean((e[:, ok] / s[:, ok]) ** 2, axis=0)
+    times, total = normalised_sum(t, e, s)
+    a_i = total / e.shape[0]
     fig, ax = plt.subplots(figsize=(9.0, 3.2), layout="constrained")
-    ax.semilogy(t[ok], a_i, "k", lw=1.0, label=f"mean over {entry['runs']} runs")
+    ax.semilogy(times, a_i, "k", lw=1.0, label=f"mean over {entry['runs']} runs")
     for w in entry["windows"]:
         colour = "#cf222e" if w["flag"] else "#1a7f37"
         ax.plot([w["t_start"], w["t_end"]], [w["mean"]] * 2, color=colour, lw=3, alpha=0.8)
