@@ -191,7 +191,10 @@ class TransferAlignment(Block):
         ),
         parameter("acquire_min_time", 5.0, "s", "shortest stage 1 (acquisition)"),
         parameter(
-            "relevel_sigma", 10.0 * ARCMIN, "rad", "level sigma added at the stage-2 restart"
+            "relevel_sigma",
+            10.0 * ARCMIN,
+            "rad",
+            "level sigma added at the stage-2 restart (not with attitude matching)",
         ),
         parameter("ukf_alpha", 0.1, "1", "UKF sigma-point spread alpha"),
         parameter("ukf_beta", 2.0, "1", "UKF beta (2: Gaussian prior)"),

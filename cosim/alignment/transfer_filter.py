@@ -282,7 +282,7 @@ class TransferFilter:
             Master velocity, NED [m/s].
         """
         sd, lay, st = self.nav, self.layout, self.settings
-        sums, T, m1 = self._close_period(c_b_n, w_eb_b)
+        sums, T, m1 = self.close_period(c_b_n, w_eb_b)
         Q = self.process_noise(T, m1)
         R = self.tuning.r_vel**2 * _I3
         z = sd.v_n - v_m - c_b_n @ cross(w_eb_b, self._r0)
@@ -322,10 +322,17 @@ class TransferFilter:
         self.P_show = ukf.P
         self._new_period()
 
-    def _close_period(
+    def close_period(
         self, c_b_n: FloatArray, w_eb_b: FloatArray
     ) -> tuple[PeriodSums, float, FloatArray | None]:
         """Close the period's sums (with the flexure matrices at its ends).
+
+        Parameters
+        ----------
+        c_b_n : ndarray, shape (3, 3)
+            Master attitude at the period's end.
+        w_eb_b : ndarray, shape (3,)
+            Master rate w.r.t. the earth, master axes [rad/s] (the flexure matrix).
 
         Returns
         -------

@@ -5,18 +5,24 @@
 alone or ``estimate_lag = 1``. It extends the 19-state (13 without flexure) model of
 :mod:`cosim.alignment.transfer_model` with
 
-* ``nu`` (3, with attitude matching): the rigid mounting's residual rotation, seen in the
-  navigation frame, as Z-Y-X Euler angles: the true slave-to-master rotation is
+* ``rho`` (3, with attitude matching): the noise-free attitude residual, a rotation
+  vector in the navigation frame, ``exp([rho x]) = E(phi) exp([C_b_n theta x]) E(nu)^T``
+  (below). It carries the mounting: the true slave-to-master rotation is
   ``C_s_b = exp([theta x]) exp([mu x]) C_nom`` (``C_nom = euler_to_dcm(mount_rpy)``, the
   nominal mounting; ``mu`` master axes; ``theta`` the deck flexure; as
-  :class:`models.blocks.lever_arm.LeverArm`: ``C_s_d = exp([mu x]) C_nom``) and
-  ``E(nu) = C_b_n exp(-[mu x]) C_b_n^T`` (``nu ~ -C_b_n mu``);
+  :class:`models.blocks.lever_arm.LeverArm`: ``C_s_d = exp([mu x]) C_nom``), seen in the
+  navigation frame as ``E(nu) = C_b_n exp(-[mu x]) C_b_n^T`` (``nu ~ -C_b_n mu``), so
+  ``E(nu) = exp(-[rho x]) E(phi) exp([C_b_n theta x])``;
 * ``tau`` (1, with ``estimate_lag = 1``): the lag of the master's data behind the
   slave's [s] (positive: the master's values arrive ``tau`` late), a random constant.
 
-``mu`` and ``tau`` are random constants (no process noise); ``nu`` follows the master's
+``mu`` and ``tau`` are random constants (no process noise); ``E(nu)`` follows the master's
 attitude exactly over a period, ``E(nu1) = dC E(nu0) dC^T`` with ``dC = C_b_n(t1)
-C_b_n(t0)^T``. Neither is fed back into the mechanisation.
+C_b_n(t0)^T``, so that ``rho`` moves with the attitude error and the flexure:
+``exp([rho1 x]) = E(phi1) F1 dC F0^T E(phi0)^T exp([rho0 x]) dC^T`` (``F =
+exp([C_b_n theta x])``). Neither is fed back into the mechanisation; the feedback of
+``phi^`` (``C^ <- E(phi^)^T C^``) turns the residual: ``exp([rho x]) <- E(phi^)^T
+exp([rho x])``.
 
 Measurements (every filter period, at a fresh master sample)
 ------------------------------------------------------------
@@ -37,26 +43,33 @@ flexure model), the small-angle residual (a rotation vector, navigation frame)::
 
     Z   = C^_s_n C_nom^T C_b_n^T          (slave mechanisation vs master x nominal mounting)
         = E(phi) exp([C_b_n theta x]) E(nu)^T exp([tau C_b_n omega_nb_b x])
+        = exp([rho x]) exp([tau C_b_n omega_nb_b x])
     z_a = rotvec(Z) + noise,                                     R = r_att^2 I
 
-exact in the attitude error ``E`` (large heading allowed), ``theta`` and ``nu``; the lag
-to first order (a master attitude ``tau`` old is ``C_b_n exp(-tau [omega_nb_b x])``,
-``omega_nb_b`` the master's rate from its attitude history,
+exact in the attitude error ``E`` (large heading allowed), ``theta`` and the mounting
+(without a lag ``z_a = rho + noise``, linear); the lag to first order (a master
+attitude ``tau`` old is ``C_b_n exp(-tau [omega_nb_b x])``, ``omega_nb_b`` the master's
+rate from its attitude history,
 :func:`~cosim.alignment.transfer_model.master_rate`). ``velocity+attitude`` stacks both
 (6 values, ``R = diag(r_vel^2 I, r_att^2 I)``); the NIS then has 6 degrees of freedom,
 else 3 (``dim_z``).
 
-Why ``nu`` and not ``mu`` in the state: at the start the mechanisation stands on the
-master's attitude times ``C_nom``, so its error ``E`` is exactly ``E(nu)`` (degrees) and
-``Z = I``. With ``nu`` the prior ``phi = nu - C_b_n theta + e0`` is linear in the UKF's
-coordinates and ``Z`` does not depend on ``nu`` along it; with ``mu`` (or with ``z_a ~
-phi + C_b_n mu``) the Euler-versus-rotation-vector curvature of degree-sized angles
-(~ 1-3 arcmin) exceeds ``r_att`` and was taken for information: heading 5 sigma off at
-2-5 s (exact ``mu`` model), roll 7 sigma off at 100 s (linear model), on the land-vehicle
-scenario.
+Why ``rho`` and not the mounting in the state: the attitude residual pins only the
+combination ``E(phi) F E(nu)^T``; a heading error of the slave with the mounting's yaw
+turned with it leaves it unchanged (the heading is seen through the velocity and the
+vehicle's turns, not through ``Z``). With ``rho`` that unobserved direction is a
+coordinate axis (``phi_D`` with ``rho`` fixed) and the measurement is linear. With the
+mounting as a state (``mu``, or ``nu`` as navigation-frame Euler angles) it is curved: a
+change of ``phi_D`` must turn ``nu``'s degree-sized level angles with it, the curvature
+(heading error times mounting tilt: 3 deg x 1 deg = 3 arcmin) exceeds ``r_att``, and the
+UKF took it for heading information. On the land-vehicle scenario that gave a heading
+sigma 2-3 times too small from 1 s to 20 s (heading 5 sigma off at 2-5 s with ``mu``;
+roll 7 sigma off at 100 s with a linear model).
 
 Start: the prior of the mounting is ``diag(p0_level^2, p0_level^2, p0_heading^2)`` in
-master roll, pitch, yaw axes (``nu`` gets ``C_b_n`` of it), ``e0`` has ``r_att^2``. No
+master roll, pitch, yaw axes (``nu`` gets ``C_b_n`` of it), the master's attitude noise
+``e0`` has ``r_att^2``; the mechanisation starts on the master's attitude times ``C_nom``,
+so ``phi = e0 + nu - C_b_n theta`` and ``rho = e0``. No
 acquisition bank runs: the mounting must be known to a few degrees (``p0_heading <=``
 :data:`MAX_HEADING_PRIOR`). Everything runs in numpy (the compiled kernels cover the
 velocity path only).
@@ -106,7 +119,7 @@ class MatchingFilter(TransferFilter):
     Parameters
     ----------
     layout : StateLayout
-        The base layout (19 or 13 states); ``nu`` and ``tau`` are appended after it.
+        The base layout (19 or 13 states); ``rho`` and ``tau`` are appended after it.
     tuning : TransferTuning
         Filter statistics (``p0_level``, ``p0_heading``: the mounting's prior).
     r0 : array_like, shape (3,)
@@ -132,8 +145,8 @@ class MatchingFilter(TransferFilter):
     ----------
     n : int
         State dimension (base + 3 with attitude + 1 with the lag).
-    nu : slice or None
-        Where the mounting residual (navigation-frame Euler angles) sits in the state.
+    rho : slice or None
+        Where the attitude residual (rotation vector, navigation frame) sits in the state.
     tau : int or None
         Where the lag sits in the state.
     dim_z : int
@@ -162,7 +175,7 @@ class MatchingFilter(TransferFilter):
         self.r_att, self.p0_lag = float(r_att), float(p0_lag)
         self.c_nom = np.asarray(c_nom, dtype=float).copy()
         n0 = layout.n
-        self.nu = slice(n0, n0 + 3) if self.use_attitude else None
+        self.rho = slice(n0, n0 + 3) if self.use_attitude else None
         n = n0 + (3 if self.use_attitude else 0)
         self.tau = n if self.estimate_lag else None
         self.n = n + (1 if self.estimate_lag else 0)
@@ -172,6 +185,7 @@ class MatchingFilter(TransferFilter):
         self._c_hist: deque[FloatArray] = deque(maxlen=3)
         self._c_prev = np.eye(3)
         self._dC = np.eye(3)
+        self._c0 = np.eye(3)
         self.P_show = self.prior(lat, np.eye(3), None)
         self.x_show = np.zeros(self.n)
 
@@ -198,29 +212,56 @@ class MatchingFilter(TransferFilter):
         P[:n0, :n0] = tu.P0(lay, lat, m0)
         if self.tau is not None:
             P[self.tau, self.tau] = self.p0_lag**2
-        if self.nu is None:
+        if self.rho is None:
             return P
-        # independent sources: phi = e0 (the master's attitude noise), nu ~ -C_b_n mu,
-        # theta; then phi := e0 + nu - C_b_n theta
-        P[lay.att, :] = 0.0
-        P[:, lay.att] = 0.0
-        P[lay.att, lay.att] = self.r_att**2 * np.eye(3)
+        # independent sources: rho = e0 (the master's attitude noise), nu ~ -C_b_n mu
+        # (three extra rows, dropped at the end), theta; then phi := e0 + nu - C_b_n theta
+        m = self.n
+        Pa = np.zeros((m + 3, m + 3))
+        Pa[:m, :m] = P
+        Pa[lay.att, :] = 0.0
+        Pa[:, lay.att] = 0.0
+        Pa[self.rho, self.rho] = self.r_att**2 * np.eye(3)
         mount = np.diag([tu.p0_level**2, tu.p0_level**2, tu.p0_heading**2])
-        P[self.nu, self.nu] = c_b_n @ mount @ c_b_n.T
-        T = np.eye(self.n)
-        T[lay.att, self.nu] = np.eye(3)
+        Pa[m:, m:] = c_b_n @ mount @ c_b_n.T
+        T = np.eye(m + 3)
+        T[lay.att, self.rho] = np.eye(3)
+        T[lay.att, m:] = np.eye(3)
         if lay.flexure:
             T[lay.att, 7:10] = -c_b_n
-        P = T @ P @ T.T
+        P = (T @ Pa @ T.T)[:m, :m]
         return 0.5 * (P + P.T)
 
-    def _fx_ext(self, x: FloatArray, dt: float, sums: PeriodSums) -> FloatArray:
+    def transition(self, x: FloatArray, dt: float, sums: PeriodSums) -> FloatArray:
+        """``f(x)``: the extended error state over one filter period (the UKF's ``fx``).
+
+        Parameters
+        ----------
+        x : ndarray, shape (..., n)
+            Error states (sigma points along the first axes).
+        dt : float
+            Period [s].
+        sums : PeriodSums
+            The mechanisation's sums over the period (:meth:`close_period`).
+
+        Returns
+        -------
+        ndarray, shape (..., n)
+            The base states by the seed 001 model, ``rho`` as the module docstring says
+            (the master's turn over the period is :meth:`turn_master`'s), ``tau`` kept.
+        """
         n0 = self.layout.n
         out = np.array(x, dtype=float, copy=True)
         out[..., :n0] = self.propagate(np.ascontiguousarray(out[..., :n0]), sums)
-        if self.nu is not None:  # nu follows the master's attitude change dC = C1 C0^T
-            dC = self._dC
-            out[..., self.nu] = dcm_to_euler(dC @ euler_to_dcm(out[..., self.nu]) @ dC.T)
+        if self.rho is not None:  # module docstring: E(nu) turns with dC = C1 C0^T
+            lay, dC = self.layout, self._dC
+            e0 = euler_to_dcm(x[..., lay.att])
+            turn = euler_to_dcm(out[..., lay.att])
+            if lay.flexure:
+                turn = turn @ rotvec_to_dcm(out[..., 7:10] @ (dC @ self._c0).T)
+                e0 = e0 @ rotvec_to_dcm(x[..., 7:10] @ self._c0.T)
+            r1 = turn @ dC @ np.swapaxes(e0, -1, -2) @ rotvec_to_dcm(x[..., self.rho]) @ dC.T
+            out[..., self.rho] = dcm_to_rotvec(r1)
         return out
 
     def measurement_model(
@@ -252,14 +293,25 @@ class MatchingFilter(TransferFilter):
             zv = x[..., lay.dv]
             parts.append(zv if tau is None else zv + tau * a_n)
         if self.use_attitude:
-            Z = euler_to_dcm(x[..., lay.att])
-            if lay.flexure:
-                Z = Z @ rotvec_to_dcm(x[..., 7:10] @ c_b_n.T)
-            Z = Z @ np.swapaxes(euler_to_dcm(x[..., self.nu]), -1, -2)
-            if tau is not None:
-                Z = Z @ rotvec_to_dcm(tau * w_nb_n)
-            parts.append(dcm_to_rotvec(Z))
+            if tau is None:
+                parts.append(x[..., self.rho])
+            else:
+                Z = rotvec_to_dcm(x[..., self.rho]) @ rotvec_to_dcm(tau * w_nb_n)
+                parts.append(dcm_to_rotvec(Z))
         return np.concatenate(parts, axis=-1)
+
+    def turn_master(self, c_b_n: FloatArray) -> None:
+        """Take the master's attitude at the end of the period about to be predicted.
+
+        Parameters
+        ----------
+        c_b_n : ndarray, shape (3, 3)
+            Master attitude as received; its turn since the last call, ``dC = C1 C0^T``,
+            turns the mounting in :meth:`transition`.
+        """
+        self._dC = c_b_n @ self._c_prev.T
+        self._c0 = self._c_prev
+        self._c_prev = np.array(c_b_n, dtype=float)
 
     def measurement_noise(self) -> FloatArray:
         """``R`` of the stacked measurement, shape (dim_z, dim_z)."""
@@ -292,7 +344,7 @@ class MatchingFilter(TransferFilter):
         ukf = UnscentedKalmanFilter(
             self.n,
             self.dim_z,
-            self._fx_ext,
+            self.transition,
             self.measurement_model,
             self._make_points_ext(),
             residual_x=angle_residual_fn([lay.heading]),
@@ -396,13 +448,19 @@ class MatchingFilter(TransferFilter):
         w_nb_n = self.body_rate_n()
         if len(self._c_hist) == 3:  # the master's rate from the slave's gyros (docstring)
             w_eb_b = c_b_n.T @ w_nb_n
-        sums, T, m1 = self._close_period(c_b_n, w_eb_b)
+        sums, T, m1 = self.close_period(c_b_n, w_eb_b)
         n0 = lay.n
         Q = np.zeros((self.n, self.n))
         Q[:n0, :n0] = self.process_noise(T, m1)
+        if self.rho is not None:  # the noise that turns phi (and theta) turns rho with it
+            G = np.zeros((self.n, n0))
+            G[:n0, :n0] = np.eye(n0)
+            G[self.rho, lay.att] = np.eye(3)
+            if lay.flexure:
+                G[self.rho, 7:10] = c_b_n
+            Q = G @ Q[:n0, :n0] @ G.T
         ukf = self._ukf
-        self._dC = c_b_n @ self._c_prev.T
-        self._c_prev = c_b_n.copy()
+        self.turn_master(c_b_n)
         ukf.predict(T, Q=Q, sums=sums)
         z = self.measured(c_b_n, w_eb_b, v_m)
         ukf.update(
@@ -428,6 +486,9 @@ class MatchingFilter(TransferFilter):
             x_new[lay.xi] = x[lay.xi]
             x_new[lay.dv] = m1 @ x[lay.xi]
         x_new[n0:] = x[n0:]
+        if self.rho is not None:  # the feedback turns the residual: E(phi^)^T exp([rho x])
+            x_new[self.rho], J[self.rho, self.rho] = turned_residual(turn, x[self.rho])
+            P = J @ ukf.P @ J.T
         ukf.x = x_new
         ukf.P = 0.5 * (P + P.T)
         if self.stage == 1.0 and t >= self.settings.min_time - 1e-9:
@@ -438,30 +499,60 @@ class MatchingFilter(TransferFilter):
     def _restart(self) -> None:
         """End the first stage (degree-sized level errors) and start the fine stage.
 
-        While the level errors are degrees, the products of level and heading errors in
-        the model give the UKF heading and accelerometer-bias information that is not
-        there: on the land-vehicle scenario, without this restart, heading 4 sigma off
-        from 2 s to 10 s, noise-free. At ``acquire_min_time`` (levels now arcminutes) the
-        accelerometer-bias estimate is discarded (the mechanisation's bias back to its
-        start, the states to their prior, uncorrelated), and ``relevel_sigma^2`` (level)
-        and ``p0_heading^2`` (heading) are added to the attitude error, jointly with the
-        mounting state ``nu`` when attitude matching runs (the attitude residual ties
-        ``phi - nu``, whose covariance is kept): what the first stage learned about the
-        absolute attitude is forgotten, the tie to the master kept. The gyro-bias
-        estimate is kept: the attitude residual's rate measures it directly.
+        With attitude matching nothing is forgotten: the stage only changes the ``phase``
+        output. The first stage is consistent there (docs/transfer_alignment.md,
+        "Consistency"), and forgetting its heading cost accuracy (land vehicle, 16 runs:
+        heading RMS 4.0' against 3.1' at 30 s, 2.1' against 1.8' at 100 s).
+
+        With velocity matching alone (``estimate_lag = 1``) the products of degree-sized
+        level errors and the heading error in the model give the UKF heading and
+        accelerometer-bias information that is not there. At ``acquire_min_time``
+        (levels now arcminutes) the accelerometer-bias estimate is discarded (the
+        mechanisation's bias back to its start, the states to their prior, uncorrelated)
+        and ``relevel_sigma^2`` (level) and ``p0_heading^2`` (heading) are added to the
+        attitude error: what the first stage learned about the absolute attitude is
+        forgotten. The gyro-bias estimate is kept.
         """
+        self.stage = 2.0
+        if self.rho is not None:
+            return
         lay, ukf, sd = self.layout, self._ukf, self.nav
         P = self._forget(ukf.P.copy(), self._m_prev, [lay.nabla])
         sd.accel_bias = np.array(self._bias0[0])
         add = [self.settings.relevel_sigma] * 2 + [self.tuning.p0_heading]
         for k, sigma in enumerate(add):
-            u = np.zeros(self.n)
-            u[lay.att.start + k] = 1.0
-            if self.nu is not None:
-                u[self.nu.start + k] = 1.0
-            P += sigma**2 * np.outer(u, u)
+            P[lay.att.start + k, lay.att.start + k] += sigma**2
         ukf.P = 0.5 * (P + P.T)
-        self.stage = 2.0
+
+
+def turned_residual(turn: FloatArray, rho: FloatArray) -> tuple[FloatArray, FloatArray]:
+    """The attitude residual after the feedback of ``phi^``, and its Jacobian.
+
+    Parameters
+    ----------
+    turn : ndarray, shape (3, 3)
+        The correction ``E(phi^)^T`` applied to the mechanisation (navigation frame).
+    rho : ndarray, shape (3,)
+        Residual before the feedback, rotation vector [rad].
+
+    Returns
+    -------
+    rho_new : ndarray, shape (3,)
+        ``rotvec(turn exp([rho x]))`` [rad].
+    jac : ndarray, shape (3, 3)
+        ``d rho_new / d rho`` (central differences, step 1e-7 rad).
+    """
+    rho = np.asarray(rho, dtype=float)
+    new = dcm_to_rotvec(turn @ rotvec_to_dcm(rho))
+    step = 1e-7
+    jac = np.empty((3, 3))
+    for k in range(3):
+        d = np.zeros(3)
+        d[k] = step
+        plus = dcm_to_rotvec(turn @ rotvec_to_dcm(rho + d))
+        minus = dcm_to_rotvec(turn @ rotvec_to_dcm(rho - d))
+        jac[:, k] = (plus - minus) / (2.0 * step)
+    return new, jac
 
 
 def estimates(
