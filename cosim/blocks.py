@@ -255,6 +255,10 @@ class BlockCallError(Exception):
         super().__init__(message)
 
 
+class BlockParametersRefused(BlockCallError):  # noqa: N818  (named for what the block did)
+    """An in-process block's own check refused a parameter while it initialised."""
+
+
 class BlockTerminated(BlockCallError):  # noqa: N818  (a request, not an error)
     """A block asked to end the simulation (FMI 2 ``fmi2Discard`` with ``fmi2Terminated``,
     FMI 3 ``terminateSimulation``): not a failure; the run ends cleanly at :attr:`time`.
@@ -333,6 +337,10 @@ class InProcessHost(BlockHost):
     def exit_init(self) -> None:
         try:
             self.instance.exit_initialization_mode()
+        except ValueError as exc:  # the model's own parameter check refused a value
+            raise BlockParametersRefused(
+                "exit_initialization_mode", f"{type(exc).__name__}: {exc}"
+            ) from exc
         except Exception as exc:  # the model's own error, reported with block and time
             raise BlockCallError(
                 "exit_initialization_mode", f"{type(exc).__name__}: {exc}"

@@ -214,7 +214,7 @@ def run(
             result = _run_here(sc, fmu_dir, overrides)
     except SimulationError as exc:
         click.echo(f"error: {exc}", err=True)
-        if exc.result is not None:
+        if exc.result is not None and len(exc.result.data):
             csv, _ = exc.result.save(out)
             click.echo(f"results recorded up to the failure are in {csv}", err=True)
         sys.exit(exc.exit_code)

@@ -129,3 +129,14 @@ class SimulationError(UserError, RuntimeError):
         if call:
             what += f", {'FMI call' if call.startswith('fmi') else 'call'} {call}"
         super().__init__(f"{what}, t = {time:.6g} s: {message}")
+
+
+class ParameterRefusedError(SimulationError):
+    """A block refused its parameters when it initialised (a ``ValueError`` of the model).
+
+    A user's mistake, not a failure of the run: exit code 3 as for any bad input; the
+    message names the block and, from the model, the parameter and its fix. Campaigns
+    record each run as failed with that message, as for any :class:`SimulationError`.
+    """
+
+    exit_code = 3

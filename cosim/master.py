@@ -54,9 +54,9 @@ from typing import Any
 import numpy as np
 
 from cosim.blockchecks import check_blocks
-from cosim.blocks import BlockCallError, BlockHost, BlockTerminated
+from cosim.blocks import BlockCallError, BlockHost, BlockParametersRefused, BlockTerminated
 from cosim.clock import CLOCKS, EXACT, Clock
-from cosim.errors import ScenarioError, SimulationError
+from cosim.errors import ParameterRefusedError, ScenarioError, SimulationError
 from cosim.observers import Ending, hooks_of
 from cosim.recording import MAX_RECORDING_BYTES, record_run  # noqa: F401 (the docs' name)
 from cosim.results import RunResult
@@ -633,7 +633,8 @@ class Master:
 
 
 def _failure(exc: BlockCallError, name: str, t: float) -> SimulationError:
-    return SimulationError(str(exc), block=name, time=t, variable=None, call=exc.call)
+    kind = ParameterRefusedError if isinstance(exc, BlockParametersRefused) else SimulationError
+    return kind(str(exc), block=name, time=t, variable=None, call=exc.call)
 
 
 def _noted(

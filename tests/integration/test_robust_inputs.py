@@ -172,6 +172,22 @@ def test_an_existing_file_as_out_or_report_is_refused_before_the_run(tmp_path: P
     assert precious.read_text() == "a result that must not be lost\n"
 
 
+def test_a_parameter_a_block_refuses_at_initialisation_is_bad_input(tmp_path: Path) -> None:
+    """A coarse window too short for the fine filter (a ValueError of the block's own
+    check) exits 3 with the block, the parameter and the fix, and no empty results file
+    (a block failing while it steps exits 4: tests/integration/test_robust_fmus.py)."""
+    text = (ROOT / "scenarios" / "sins_north_finding_sway.toml").read_text()
+    assert 'coarse_time = "60 s"' in text
+    path = tmp_path / "short.toml"
+    path.write_text(text.replace('coarse_time = "60 s"', 'coarse_time = "30 s"'))
+    out = tmp_path / "out"
+    res = CliRunner().invoke(main, ["run", str(path), "--out", str(out)])
+    assert res.exit_code == 3, res.output
+    assert "block 'align'" in res.output and "set coarse_time >= 38 s" in res.output
+    assert "results recorded" not in res.output and not (out / "results.csv").exists()
+    assert "Traceback" not in res.output
+
+
 # ------------------------------------------------------------- item 5: large inputs
 def _chain(n: int) -> tuple[list[str], list[Connection]]:
     names = [f"b{i}" for i in reversed(range(n))]  # declared last first
