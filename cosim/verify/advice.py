@@ -136,7 +136,7 @@ class Advice:
         return None if self.runs is None else self.runs - self.made
 
     def text(self) -> str:
-        """The advice in one clause, for a verdict's reason and claim.
+        """The advice in one clause, for a verdict's reason.
 
         Returns
         -------

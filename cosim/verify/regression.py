@@ -331,6 +331,8 @@ def regression_table(
             "note": "no drawn parameters: the runs differ only in seeds, and no sensor block "
             "outputs its draw (see [campaign] stratify)"
         }
+    if not np.any(ok):
+        return {"note": "no regression: no completed run has the metric and every drawn value"}
     X = np.column_stack([r.values[ok] / r.factor for r in regressors])
     try:
         fit = ols(y[ok], X, tuple(r.name for r in regressors), tuple(r.unit for r in regressors))

@@ -116,8 +116,7 @@ def judge(
         verdict.details["verdict_then"] = tip.verdict
         verdict.details["runs_promised"] = tip.promised
         verdict.details["advice"] = tip.text()
-        verdict.reason += f"; {tip.text()}"
-        verdict.claim += f"; {tip.text()}"
+        verdict.reason += f"; {tip.text()}"  # the claim stays what is shown (not the advice)
     return verdict
 
 
@@ -141,7 +140,7 @@ def _judge(req: Requirement, metrics: Sequence[RunMetric | None]) -> Verdict:
             *_limit(req),
             why,
             n_used=0,
-            claim=f"nothing is shown about the runs: {why}",
+            claim="nothing is shown about the runs",
             **base,
         )
     short = [m for m in used if m.passed is None]
@@ -154,7 +153,7 @@ def _judge(req: Requirement, metrics: Sequence[RunMetric | None]) -> Verdict:
             *_limit(req),
             why,
             n_used=len(used),
-            claim=f"nothing is shown about the runs: {why}",
+            claim="nothing is shown about the runs",
             **base,
         )
     verdict = _statistic(req, used)
@@ -255,7 +254,7 @@ def _statistic(req: Requirement, used: list[RunMetric]) -> Verdict:
                     req.limit,
                     unit,
                     why,
-                    claim=f"nothing is shown about the runs: {why}",
+                    claim="nothing is shown about the runs",
                     details={"runs_to_decide": need, **details},
                     **common,
                 )

@@ -47,3 +47,14 @@ def test_real_collinearity_and_constant_columns_are_refused() -> None:
     flat[:, 0] = 4e-7
     with pytest.raises(ValueError, match="gyro_drift does not vary"):
         ols(y, flat, NAMES, UNITS)
+
+
+def test_a_campaign_without_a_completed_run_gets_a_sentence_not_a_numpy_error() -> None:
+    """Every run failed (nan metric): the report's regression line says so in words
+    (it once printed numpy's "cannot reshape array of size 0")."""
+    from cosim.estimation.error_model import Regressor
+    from cosim.verify.regression import regression_table
+
+    regs = [Regressor("gyro_drift", "deg/h", 1.0, np.array([1e-7, 2e-7]))]
+    out = regression_table(np.array([np.nan, np.nan]), regs, [None], "arcmin")
+    assert out == {"note": "no regression: no completed run has the metric and every drawn value"}
