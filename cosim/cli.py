@@ -400,7 +400,7 @@ def verify(
 
     --until-decided judges at looks of --runs, 2 x --runs, ... up to --max-runs runs,
     each requirement at a confidence whose alphas sum to its own 1 - confidence, and
-    stops when all are decided (README, "Campaigns sized to decide").
+    stops when all are decided (docs/campaigns.md, "Campaigns sized to decide").
 
     Exit code: 0 all satisfied, 1 any violated, 2 any undecided (none violated),
     3 bad input, 130 interrupted (finished runs are kept: rerun with --resume).

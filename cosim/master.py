@@ -1,6 +1,6 @@
 """The master algorithm: fixed macro step, multi-rate, Gauss-Seidel or Jacobi coupling.
 
-The coupling rule (README, "The coupling rule", has the diagram):
+The coupling rule (docs/concepts.md, "The coupling rule", has the diagram):
 
 - Time ``t_n`` comes from an integer counter ``n``; nothing accumulates. By default
   ``t_n`` is the double nearest the exact ``t0 + n h`` (one rounding, as libcosim's

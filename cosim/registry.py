@@ -9,7 +9,7 @@ Two sources, looked up in this order:
    distribution: the entry point's name is the scenario's name, its value the class as
    ``"module:Class"``. ins-cosim registers its own alignment filters this way (see
    ``pyproject.toml``); a user's package adds its filters and models the same way,
-   without touching this repository (README, "Adding your own model or filter")::
+   without touching this repository (docs/extending.md)::
 
        [project.entry-points."ins_cosim.blocks"]
        MyFilter = "my_package.filters:MyFilter"

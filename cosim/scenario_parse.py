@@ -1,6 +1,6 @@
 """Scenario files (TOML) read into a checked description; building it is :mod:`cosim.scenario`.
 
-Format (README, "Scenario files", is the user's reference)::
+Format (docs/scenario_files.md is the user's reference)::
 
     [scenario]
     name = "demo"

@@ -111,7 +111,7 @@ class HrgBudget:
             f"{METHOD_NAMES.get(method, 'another filter')}"
         )
         self.description = (
-            "seed 000 two-position alignment with the linear KF's model (method 2: a KF on "
+            "HRG two-position alignment with the linear KF's model (method 2: a KF on "
             "the paper's linear platform-frame model in each position), first-order "
             "through eq. (16)-(21)"
             + ("" if method == 2 else f"; the campaign's filter is {METHOD_NAMES.get(method)}")
@@ -254,7 +254,7 @@ class HrgBudget:
             return "no linear error model for this signal"
         if req.criterion != "value":
             return (
-                "the seed 000 budget is taken at a requirement's time (a value criterion); "
+                "the two-position budget is taken at a requirement's time (a value criterion); "
                 "this one is a window or a settling time"
             )
         at = stop if req.at is None else req.at
@@ -262,7 +262,7 @@ class HrgBudget:
             self._compute()
         assert self._errors is not None
         if at <= self.aligner.starts.get(2, math.inf):
-            return "the seed 000 budget needs the two-position solution (a time in position 2)"
+            return "the two-position budget needs the two-position solution (a time in position 2)"
         errors = self._errors
         signed = {
             label: errors["all"][req.id] - errors[label][req.id] for label, _, _ in self.sources

@@ -107,7 +107,7 @@ Limits: the block must step every macro step (rate 1) with a constant step that 
 ``period``: its strapdown needs every increment; it starts once it has five master
 attitudes (for the rate), i.e. four steps after the start. Without a lever arm the
 heading is observable only by gyrocompassing (tens of minutes), which the acquisition
-stage is not designed for (README, seed 001).
+stage is not designed for (seed 001; docs/reproductions.md).
 """
 
 from __future__ import annotations

@@ -244,7 +244,8 @@ class TransferTuning:
     flex_tau : tuple of float
         Flexure correlation times [s] (600 s).
     flex_sigma : tuple of float
-        Flexure stationary sigmas [rad] (2 arcmin: the README's seed-001 assumption).
+        Flexure stationary sigmas [rad] (2 arcmin: our assumption for seed 001,
+        docs/reproductions.md).
     """
 
     p0_pos: float = 15.0

@@ -17,8 +17,8 @@ coupling rule of ins-cosim and libcosim in four ways that change the numbers:
 
 :func:`run_fmpy_ssp` therefore drives fmpy's own pieces (``read_ssd`` for the structure
 and parameter sets, fmpy's ``FMU2Slave`` for each component, ``fmpy.ssp.simulation``'s
-``set_value`` / ``get_value`` for the exchange) with the Jacobi rule of README
-"Concepts": parameters and the sources' start values (0.0 for an output without one)
+``set_value`` / ``get_value`` for the exchange) with the Jacobi rule of
+docs/concepts.md: parameters and the sources' start values (0.0 for an output without one)
 set before initialisation, then in each macro step every component reads the outputs
 of the end of the previous step, steps from ``t_n = t0 + n h`` by ``t_{n+1} - t_n``,
 and the connections are copied (``factor * value + offset`` of the transformation)

@@ -348,7 +348,7 @@ def parse_header(
             raise LogColumnError(
                 file,
                 f"column '{text}': {exc.message}",
-                "use a unit the unit system knows (README, 'Scenario files')",
+                "use a unit the unit system knows (docs/scenario_files.md)",
                 where,
             ) from exc
         allowed = layout.kinds[slots[j]]

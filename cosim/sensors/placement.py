@@ -1,6 +1,6 @@
 """Place a real run in a simulated campaign: its percentile per requirement.
 
-The workflow (README, "Verify around the real sensor"): the filter runs once on a real
+The workflow (docs/sensor_logs.md, "Verify around the real sensor"): the filter runs once on a real
 log (``ImuLogReplay``) and a campaign runs the simulated IMU with the sensor's
 characterised parameters, both through ``ins-cosim verify`` with the same requirements.
 For every requirement, the real run's metric (the per-run value the verdict is built

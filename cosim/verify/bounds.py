@@ -2,7 +2,7 @@
 
 Each function bounds one population value of the per-run metrics one-sidedly at a given
 confidence; :func:`cosim.verify.statistics.judge` turns the bounds into a three-valued
-verdict. The assumption each bound needs is in its docstring and in the README
+verdict. The assumption each bound needs is in its docstring and in docs/verification.md
 ("Statistics over the runs").
 """
 

@@ -12,8 +12,8 @@ Criteria (``e(t)`` is the error in the display unit, ``t0`` the run's start time
     settling   metric = first time after which |e| <= band      pass: metric <= within
                until the end of the run, minus t0 [s]
 
-Statistics over the runs, bounded at ``confidence`` (README, "Verification and
-campaigns"; :mod:`cosim.verify.statistics`)::
+Statistics over the runs, bounded at ``confidence`` (docs/verification.md;
+:mod:`cosim.verify.statistics`)::
 
     max            every run meets the limit: one run over it violates; all n passing
                    with 1 - p^n >= confidence satisfies (`probability` p, default 0.95)

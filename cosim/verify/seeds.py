@@ -1,6 +1,6 @@
 """The one seed rule of every campaign, and stratified (Latin hypercube) draws.
 
-Seeds of run ``i`` of a campaign with seed ``S`` (README, "Verification and campaigns")::
+Seeds of run ``i`` of a campaign with seed ``S`` (docs/verification.md)::
 
     state = SeedSequence(S).spawn(runs)[i].generate_state(len(names), uint32)
     seed of names[j] in run i = int(state[j] >> 1)          # 0 .. 2**31 - 1, an FMI Integer

@@ -5,7 +5,7 @@ into a :class:`~cosim.verify.requirements.Verdict`: satisfied when the statistic
 one-sided upper confidence bound meets the limit, violated when its lower bound is over
 it (``max``: when a run is over it), else undecided, with the claim about all runs it
 supports in words. The bounds are in :mod:`cosim.verify.bounds` (re-exported here); the
-theory of each statistic is in the README ("Verification and campaigns").
+theory of each statistic is in docs/verification.md.
 """
 
 from __future__ import annotations
@@ -84,7 +84,7 @@ def judge(
     Returns
     -------
     Verdict
-        See the README ("Verdict rules"): satisfied when the statistic's upper bound
+        See docs/verification.md ("Verdict rules"): satisfied when the statistic's upper bound
         meets the limit, violated when its lower bound is over it (``max``: when a run
         is over it), else undecided; a run too short to decide makes the verdict
         undecided; failed runs follow ``req.on_failure``. ``claim`` says in words what
