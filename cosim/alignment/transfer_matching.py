@@ -63,16 +63,17 @@ mounting as a state (``mu``, or ``nu`` as navigation-frame Euler angles) it is c
 change of ``phi_D`` must turn ``nu``'s degree-sized level angles with it, the curvature
 (heading error times mounting tilt: 3 deg x 1 deg = 3 arcmin) exceeds ``r_att``, and the
 UKF took it for heading information. On the land-vehicle scenario that gave a heading
-sigma 2-3 times too small from 1 s to 20 s (heading 5 sigma off at 2-5 s with ``mu``;
-roll 7 sigma off at 100 s with a linear model).
+sigma 5 times too small in the first 5 s and 2 times until 15 s (heading 5 sigma off at
+2-5 s with ``mu``; roll 7 sigma off at 100 s with a linear model). The process noise that
+turns ``phi`` over a period turns ``rho`` with it (``Q`` maps the base noise of ``phi``,
+and of ``theta``, into ``rho``); without that, roll ran 10 sigma off.
 
 Start: the prior of the mounting is ``diag(p0_level^2, p0_level^2, p0_heading^2)`` in
 master roll, pitch, yaw axes (``nu`` gets ``C_b_n`` of it), the master's attitude noise
 ``e0`` has ``r_att^2``; the mechanisation starts on the master's attitude times ``C_nom``,
-so ``phi = e0 + nu - C_b_n theta`` and ``rho = e0``. No
-acquisition bank runs: the mounting must be known to a few degrees (``p0_heading <=``
-:data:`MAX_HEADING_PRIOR`). Everything runs in numpy (the compiled kernels cover the
-velocity path only).
+so ``phi = e0 + nu - C_b_n theta`` and ``rho = e0``. No acquisition bank runs: the
+mounting must be known to a few degrees (``p0_heading <=`` :data:`MAX_HEADING_PRIOR`).
+Everything runs in numpy (the compiled kernels cover the velocity path only).
 """
 
 from __future__ import annotations
