@@ -104,6 +104,7 @@ from cosim.models.conventions import (
     dcm_to_rotvec,
     euler_to_dcm,
     rotvec_to_dcm,
+    so3_right_jacobian,
 )
 
 FloatArray = NDArray[np.float64]
@@ -259,7 +260,7 @@ class MatchingFilter(TransferFilter):
             e0 = euler_to_dcm(x[..., lay.att])
             turn = euler_to_dcm(out[..., lay.att])
             if lay.flexure:
-                turn = turn @ rotvec_to_dcm(out[..., 7:10] @ (dC @ self._c0).T)
+                turn = turn @ rotvec_to_dcm(out[..., 7:10] @ self._c_prev.T)
                 e0 = e0 @ rotvec_to_dcm(x[..., 7:10] @ self._c0.T)
             r1 = turn @ dC @ np.swapaxes(e0, -1, -2) @ rotvec_to_dcm(x[..., self.rho]) @ dC.T
             out[..., self.rho] = dcm_to_rotvec(r1)
@@ -481,7 +482,6 @@ class MatchingFilter(TransferFilter):
             c[...] = turn @ c
         J = np.eye(self.n)
         J[:n0, :n0] = reset_jacobian(x[:n0], lay)
-        P = J @ ukf.P @ J.T
         x_new = np.zeros(self.n)
         if lay.flexure:
             x_new[lay.xi] = x[lay.xi]
@@ -489,7 +489,7 @@ class MatchingFilter(TransferFilter):
         x_new[n0:] = x[n0:]
         if self.rho is not None:  # the feedback turns the residual: E(phi^)^T exp([rho x])
             x_new[self.rho], J[self.rho, self.rho] = turned_residual(turn, x[self.rho])
-            P = J @ ukf.P @ J.T
+        P = J @ ukf.P @ J.T
         ukf.x = x_new
         ukf.P = 0.5 * (P + P.T)
         if self.stage == 1.0 and t >= self.settings.min_time - 1e-9:
@@ -541,19 +541,12 @@ def turned_residual(turn: FloatArray, rho: FloatArray) -> tuple[FloatArray, Floa
     rho_new : ndarray, shape (3,)
         ``rotvec(turn exp([rho x]))`` [rad].
     jac : ndarray, shape (3, 3)
-        ``d rho_new / d rho`` (central differences, step 1e-7 rad).
+        ``d rho_new / d rho = J_r(rho_new)^-1 J_r(rho)`` (``J_r`` the right Jacobian of
+        SO(3): ``exp([(rho + d) x]) = exp([rho x]) exp([J_r(rho) d x])`` to first order).
     """
     rho = np.asarray(rho, dtype=float)
     new = dcm_to_rotvec(turn @ rotvec_to_dcm(rho))
-    step = 1e-7
-    jac = np.empty((3, 3))
-    for k in range(3):
-        d = np.zeros(3)
-        d[k] = step
-        plus = dcm_to_rotvec(turn @ rotvec_to_dcm(rho + d))
-        minus = dcm_to_rotvec(turn @ rotvec_to_dcm(rho - d))
-        jac[:, k] = (plus - minus) / (2.0 * step)
-    return new, jac
+    return new, np.linalg.solve(so3_right_jacobian(new), so3_right_jacobian(rho))
 
 
 def estimates(

@@ -15,7 +15,7 @@ from transfer_vehicle import MOUNT_DEG, final_figures, vehicle_run
 
 from cosim.alignment.transfer import TransferAlignment
 from cosim.alignment.transfer_filter import StageSettings
-from cosim.alignment.transfer_matching import MatchingFilter
+from cosim.alignment.transfer_matching import MatchingFilter, turned_residual
 from cosim.alignment.transfer_model import StateLayout, TransferConfigError, TransferTuning
 from cosim.models import native
 from cosim.models.constants import ARCMIN, DEG
@@ -131,6 +131,27 @@ def test_the_mounting_seen_by_the_state_turns_with_the_master() -> None:
         dc = c1 @ C_B_N.T
         want = dc @ e_nu(x[k], C_B_N) @ dc.T
         np.testing.assert_allclose(e_nu(out[k], c1), want, rtol=0, atol=1e-13)
+
+
+def test_the_feedback_turns_the_residual_with_its_exact_jacobian() -> None:
+    """turned_residual: rho_new = rotvec(E(phi^)^T exp([rho x])), and its Jacobian (from
+    the right Jacobians of SO(3)) equals central differences of that map to 1e-8, for
+    residuals and corrections from arcminutes to half a radian."""
+    rng = np.random.default_rng(3)
+    for scale in (3.0 * ARCMIN, 3.0 * DEG, 0.5):
+        turn = euler_to_dcm(rng.normal(0.0, scale, 3)).T
+        rho = rng.normal(0.0, scale, 3)
+        new, jac = turned_residual(turn, rho)
+        np.testing.assert_allclose(rotvec_to_dcm(new), turn @ rotvec_to_dcm(rho), atol=1e-15)
+        step = 1e-6
+        fd = np.column_stack(
+            [
+                (turned_residual(turn, rho + d)[0] - turned_residual(turn, rho - d)[0])
+                / (2.0 * step)
+                for d in step * np.eye(3)
+            ]
+        )
+        np.testing.assert_allclose(jac, fd, rtol=0, atol=1e-8)
 
 
 def test_lag_term_matches_a_delayed_master_to_first_order() -> None:
