@@ -72,6 +72,7 @@ __all__ = [
     "Advice",
     "advise",
     "decide_probability",
+    "replay_advice",
 ]
 
 #: Probability of a decision the advised run count is chosen for.
@@ -152,6 +153,41 @@ class Advice:
             f"({self.verdict}) in {100 * self.share:g} % of campaigns"
         )
         return self.template.replace("{advice}", advice)
+
+
+def replay_advice(replayed: Sequence[str], made: int) -> Advice:
+    """The advice of an undecided verdict when the runs replay recorded logs.
+
+    Every run of such a campaign reads the same samples; a second run redraws only the
+    seeds of the simulated blocks (the filter's own draws), so no number of runs decides
+    a requirement on the sensor the log recorded.
+
+    Parameters
+    ----------
+    replayed : sequence of str
+        The blocks that replay a log.
+    made : int
+        Runs made.
+
+    Returns
+    -------
+    Advice
+        ``runs`` None, ``method`` ``"replay"``; its text says what would decide it.
+    """
+    names = ", ".join(f"'{b}'" for b in replayed)
+    return Advice(
+        runs=None,
+        made=made,
+        share=ADVICE_SHARE,
+        probability=math.nan,
+        verdict=UNDECIDED,
+        method="replay",
+        note=(
+            f"but every run replays the same log (block {names}): more runs redraw only the "
+            "simulated blocks' seeds and cannot decide it; what would: a longer log, more "
+            "logs of the sensor (one run each), or a requirement on the filter's own sigma"
+        ),
+    )
 
 
 def _binomial(req: Requirement, passed: np.ndarray, confidence: float, q: float) -> Callable:

@@ -36,7 +36,7 @@ from cosim.errors import ScenarioError
 from cosim.foreign import foreign_fmus
 from cosim.runs import assemble
 from cosim.scenario import Scenario, load_scenario
-from cosim.sensors.pairing import check_log_pairs
+from cosim.sensors.pairing import check_log_pairs, replay_blocks
 from cosim.verify.dispatch import run_jobs
 from cosim.verify.lock import holding_report_folder
 from cosim.verify.pool import WorkerPool, keeps_workers
@@ -304,6 +304,8 @@ class Prepared:
         Block -> names of its parameters (what a job may set).
     fmu_dir : str or None
         The FMU folder the scenario runs its built-in models from (absolute).
+    replayed : tuple of str
+        Blocks that replay a recorded log (every run reads the same samples).
     """
 
     scenario: Scenario
@@ -315,6 +317,7 @@ class Prepared:
     parameters: dict[str, dict[str, Any]] | None = None
     declared: dict[str, set[str]] | None = None
     fmu_dir: str | None = None
+    replayed: tuple[str, ...] = ()
 
     def check_parameters(self, parameters: Mapping[str, Mapping[str, Any]], what: str) -> None:
         """Refuse parameters of unknown blocks or names (before any run).
@@ -384,6 +387,7 @@ def prepare(
         master.warn_loops()  # once here; the workers run silently
         check_log_pairs(sc, master)  # two logs in one run (cosim.sensors.pairing)
         checked = check_tables(sc, settings, master, requirements=requirements)
+        replayed = tuple(replay_blocks(master))
     finally:
         master.terminate()
     return Prepared(
@@ -396,6 +400,7 @@ def prepare(
         checked.parameters,
         checked.declared,
         fmu,
+        replayed,
     )
 
 
@@ -602,7 +607,10 @@ def run_campaign(
     if missing:  # a run handed back by no worker: a bug, not a user's mistake
         raise CampaignError(f"runs {missing[:5]} were not run")
     records = [saved[i] for i in wanted]
-    verdicts = [judge(req, [r.metrics.get(req.id) for r in records]) for req in prep.requirements]
+    verdicts = [
+        judge(req, [r.metrics.get(req.id) for r in records], replayed=prep.replayed)
+        for req in prep.requirements
+    ]
     meta = prep.metadata
     blocks_seeds = {b: meta["seeds"].get(b) for b in prep.seeded}
     master = prep.scenario.settings
@@ -624,6 +632,7 @@ def run_campaign(
             },
             "seeded_blocks": prep.seeded,
             "randomized_blocks": randomized,
+            "replayed_blocks": list(prep.replayed),
             "stratified": list(settings.stratify),
             "file_seeds": blocks_seeds,
             "seed_rule": SEED_RULE,

@@ -156,7 +156,10 @@ def consistency_section(campaign: Any) -> dict[str, Any]:
     Each completed run was judged at :data:`~cosim.verify.consistency.DEFAULT_FALSE_ALARM`
     per run (all its signals together), so a consistent filter's output is flagged in a
     number of runs no larger than Binomial(n, 0.01); ``p_value`` is that tail at the
-    observed count, and below :data:`EVIDENCE` the filter is called inconsistent.
+    observed count, and below :data:`EVIDENCE` the filter is called inconsistent. A
+    campaign of one run (a recorded log) is judged as that run: a flag is the verdict,
+    ``"inconsistent"`` with the run's window and factor, since no count of runs can
+    explain it away.
 
     Parameters
     ----------
@@ -192,7 +195,15 @@ def consistency_section(campaign: Any) -> dict[str, Any]:
             continue
         p = float(stats.binom.sf(f - 1, n, a)) if f else 1.0
         e["p_value"] = p
-        if p < EVIDENCE:
+        if f and n == 1:  # one run is judged as one run: its flag is the verdict
+            e["verdict"] = "inconsistent"
+            run, message = e["examples"][0]
+            e["text"] = (
+                f"INCONSISTENT in its one run (run {run}): "
+                + message.split(": INCONSISTENT: ", 1)[-1]
+                + f" (a consistent filter is flagged in {100 * a:g} % of runs)"
+            )
+        elif p < EVIDENCE:
             e["verdict"] = "inconsistent"
             e["text"] = (
                 f"INCONSISTENT: flagged in {f} of {n} runs, more than the {100 * a:g} % "

@@ -144,16 +144,43 @@ def _jsonable(obj: Any) -> Any:
 
 
 # ---------------------------------------------------------------------------- JUnit
-def _measured(v: Verdict) -> str:
+def measured_text(v: Verdict) -> str:
+    """The report's "measured" cell of a verdict: its statistic with the unit.
+
+    Parameters
+    ----------
+    v : Verdict
+        A campaign verdict.
+
+    Returns
+    -------
+    str
+        A quantile statistic (``p95``) gives the sample quantile and the confidence
+        bound the verdict judged as two labelled numbers.
+    """
     if isinstance(v.value, float) and math.isnan(v.value):
         return "none"
     if v.statistic == "pass_rate":
         return f"pass rate {100 * v.value:.4g} % ({v.n_pass}/{v.n_used} runs)"
+    if v.statistic == "quantile":  # the sample quantile and the bound the verdict used
+        return _quantile_measured(v)
     if v.unit == "1":
         return f"{v.value:.4g}"
     if math.isinf(v.value):
         return "not settled" if v.unit == "s" else str(v.value)
     return f"{v.value:.6g} {v.unit}"
+
+
+def _quantile_measured(v: Verdict) -> str:
+    """``"sample p95 540.1 arcmin; 95 % upper bound 576.8 arcmin"`` (the bound judged)."""
+    name = v.details.get("statistic_text") or "quantile"
+    sample = v.details.get("sample_quantile", math.nan)
+    side = "lower" if v.verdict == "violated" else "upper"
+    conf = f"{100 * float(v.details.get('confidence', math.nan)):g} %"
+    head = "sample " + name + " " + ("none" if math.isnan(sample) else f"{sample:.6g} {v.unit}")
+    if math.isinf(v.value):
+        return f"{head}; no {conf} {side} bound (too few runs)"
+    return f"{head}; {conf} {side} bound {v.value:.6g} {v.unit}"
 
 
 def _bound(v: Verdict) -> str:
@@ -203,7 +230,7 @@ def write_junit(campaign: Campaign, path: Path, created: str = "") -> Path:
             f"signal: {req.signal}" + (f" - {req.minus}" if req.minus else "") + "\n"
             f"criterion (per run): {req.describe()}\n"
             f"statistic: {req.describe_statistic()}\n"
-            f"measured: {_measured(v)}\n"
+            f"measured: {measured_text(v)}\n"
             f"bound: {_bound(v)}\n"
             f"runs: {v.n_runs} ({v.n_failed} failed, {v.n_used} used, {v.n_pass} met the bound)\n"
             f"verdict: {v.verdict}: {v.reason}\n"
@@ -213,7 +240,7 @@ def write_junit(campaign: Campaign, path: Path, created: str = "") -> Path:
             failure = ET.SubElement(
                 case,
                 "failure",
-                message=f"measured {_measured(v)}, bound {_bound(v)}: {v.reason}. {v.claim}",
+                message=f"measured {measured_text(v)}, bound {_bound(v)}: {v.reason}. {v.claim}",
                 type="violated",
             )
             failure.text = detail
@@ -570,7 +597,7 @@ def write_html(campaign: Campaign, path: Path, data: dict[str, Any] | None = Non
             f'<tr class="requirement-row" data-id="{_e(req.id)}" data-verdict="{v.verdict}">'
             f'<td><a href="#req-{_e(req.id)}">{_e(req.id)}</a></td><td>{_e(req.text)}</td>'
             f"<td>{_e(req.describe())}</td><td>{_e(req.describe_statistic())}</td>"
-            f"<td>{_e(_measured(v))}</td><td>{_e(_bound(v))}</td>"
+            f"<td>{_e(measured_text(v))}</td><td>{_e(_bound(v))}</td>"
             f'<td class="verdict {v.verdict}">{v.verdict}</td><td>{_e(v.reason)}</td>'
             f'<td class="claim">{_e(v.claim)}</td></tr>'
         )

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from cosim.verify.advice import advise as runs_advice
+from cosim.verify.advice import replay_advice
 from cosim.verify.bounds import (
     BOOTSTRAP_MIN_RUNS,
     clopper_pearson,
@@ -64,6 +65,7 @@ def judge(
     *,
     confidence: float | None = None,
     advise: bool = True,
+    replayed: Sequence[str] = (),
 ) -> Verdict:
     """The campaign verdict of one requirement.
 
@@ -80,6 +82,10 @@ def judge(
         Add to an undecided verdict the runs in total that would decide it
         (:func:`cosim.verify.advice.advise`, from the runs made): ``details``
         ``runs_to_decide`` and one clause in ``reason`` and ``claim``.
+    replayed : sequence of str
+        Blocks that replay a recorded log: every run sees the same data, so more runs
+        redraw only the other blocks' seeds and cannot decide; the advice of an undecided
+        verdict says so and what would (:func:`cosim.verify.advice.replay_advice`).
 
     Returns
     -------
@@ -110,7 +116,10 @@ def judge(
         )
         verdict.details["flagged_runs"] = [i for i, _ in flagged]
     if advise and verdict.verdict == UNDECIDED:
-        tip = runs_advice(full, metrics, gamma)
+        if replayed:
+            tip = replay_advice(replayed, len(metrics))
+        else:
+            tip = runs_advice(full, metrics, gamma)
         verdict.details["runs_to_decide"] = tip.runs
         verdict.details["runs_advice"] = tip.method
         verdict.details["verdict_then"] = tip.verdict
@@ -435,6 +444,7 @@ def _quantile(req: Requirement, values: np.ndarray, common: dict[str, Any]) -> V
     finite = x[np.isfinite(x)]
     details = {
         "sample_quantile": float(np.quantile(x, p)) if finite.size == n else math.nan,
+        "statistic_text": name,
         "upper_rank": r_up,
         "lower_rank": r_lo,
         "runs_needed_for_max": wilks_min_runs(p, gamma),
